@@ -1,0 +1,718 @@
+//! GeoTIFF reading (band 1 of any strip/tiled, little/big-endian, compressed TIFF the `tiff`
+//! crate decodes) and writing (strip layout, Deflate, native = little-endian byte order on
+//! the platforms we run on).
+//!
+//! Georeferencing: ModelTiepoint + ModelPixelScale, or ModelTransformation without rotation;
+//! GeoKeys GTModelType (1024), GTRasterType (1025, PixelIsPoint shifts by half a cell),
+//! GeographicType (2048), ProjectedCSType (3072; 32767 = user-defined → no EPSG code),
+//! ProjLinearUnits (3076) and ProjLinearUnitSize (3077); nodata from GDAL_NODATA (42113).
+//!
+//! Palette (and WhiteIsZero) images: `tiff` 0.11 refuses to decode PhotometricInterpretation
+//! RGBPalette at all (its colour-type check runs before any chunk is read), while the samples
+//! are plain 8-bit indices. The reader therefore patches the 2-byte PhotometricInterpretation
+//! value in an in-memory copy of the file to BlackIsZero and decodes that copy; the ColorMap is
+//! read from the original tags first. Nothing else of the TIFF is parsed by hand.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::encoder::colortype::{ColorType, Gray8, Gray32Float};
+use tiff::encoder::compression::DeflateLevel;
+use tiff::encoder::{Compression, TiffEncoder, TiffValue};
+use tiff::tags::{PhotometricInterpretation, SampleFormat, Tag};
+
+use super::crs::{Crs, FOOT, US_SURVEY_FOOT};
+use super::error::GisError;
+use super::raster::{self, GeoTransform, Raster};
+
+/// GeoKey ids used here.
+mod key {
+    pub const MODEL_TYPE: u16 = 1024;
+    pub const RASTER_TYPE: u16 = 1025;
+    pub const GEOGRAPHIC_TYPE: u16 = 2048;
+    pub const PROJECTED_CS_TYPE: u16 = 3072;
+    pub const PROJ_LINEAR_UNITS: u16 = 3076;
+    pub const PROJ_LINEAR_UNIT_SIZE: u16 = 3077;
+}
+
+/// GeoKey value for "user-defined".
+const USER_DEFINED: u16 = 32767;
+/// GTModelType values.
+const MODEL_PROJECTED: u16 = 1;
+const MODEL_GEOGRAPHIC: u16 = 2;
+const MODEL_GEOCENTRIC: u16 = 3;
+/// GTRasterType values.
+const RASTER_PIXEL_IS_AREA: u16 = 1;
+const RASTER_PIXEL_IS_POINT: u16 = 2;
+/// EPSG linear unit codes.
+const UNIT_METRE: u16 = 9001;
+const UNIT_FOOT: u16 = 9002;
+const UNIT_US_SURVEY_FOOT: u16 = 9003;
+const UNIT_KILOMETRE: u16 = 9036;
+
+/// Sample types this reader converts to `f64`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SampleType {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    F32,
+    F64,
+}
+
+impl SampleType {
+    /// From the SampleFormat and BitsPerSample tag values; `Err` describes an unsupported one.
+    fn from_tags(format: u16, bits: u16) -> Result<SampleType, String> {
+        let kind = match format {
+            1 => "unsigned integer",
+            2 => "signed integer",
+            3 => "float",
+            4 => "undefined",
+            5 => "complex integer",
+            6 => "complex float",
+            _ => "unknown format",
+        };
+        Ok(match (format, bits) {
+            (1, 8) => SampleType::U8,
+            (2, 8) => SampleType::I8,
+            (1, 16) => SampleType::U16,
+            (2, 16) => SampleType::I16,
+            (1, 32) => SampleType::U32,
+            (2, 32) => SampleType::I32,
+            (3, 32) => SampleType::F32,
+            (3, 64) => SampleType::F64,
+            _ => return Err(format!("{bits}-bit {kind} (SampleFormat {format})")),
+        })
+    }
+}
+
+/// A GeoKey value: a SHORT stored in the directory or DOUBLEs from GeoDoubleParams.
+#[derive(Debug, Clone, PartialEq)]
+enum KeyValue {
+    Short(u16),
+    Doubles(Vec<f64>),
+    /// ASCII or otherwise unused here.
+    Other,
+}
+
+/// The GeoKeys of a file, in directory order.
+#[derive(Debug, Default)]
+struct GeoKeys {
+    keys: Vec<(u16, KeyValue)>,
+}
+
+impl GeoKeys {
+    /// Parses GeoKeyDirectory (SHORTs) with GeoDoubleParams.
+    fn parse(dir: &[u16], doubles: &[f64]) -> Result<GeoKeys, String> {
+        let [_version, _revision, _minor, count, rest @ ..] = dir else {
+            return Err("GeoKeyDirectory is shorter than its 4-value header".to_string());
+        };
+        let count = usize::from(*count);
+        if rest.len() < count * 4 {
+            return Err(format!("GeoKeyDirectory announces {count} keys but holds {}", rest.len() / 4));
+        }
+        let keys = rest
+            .chunks_exact(4)
+            .take(count)
+            .map(|e| {
+                let (id, location, n, value) = (e[0], e[1], usize::from(e[2]), e[3]);
+                let v = match location {
+                    0 => KeyValue::Short(value),
+                    34735 => dir.get(usize::from(value)).map_or(KeyValue::Other, |&s| KeyValue::Short(s)),
+                    34736 => doubles
+                        .get(usize::from(value)..usize::from(value) + n)
+                        .map_or(KeyValue::Other, |d| KeyValue::Doubles(d.to_vec())),
+                    _ => KeyValue::Other,
+                };
+                (id, v)
+            })
+            .collect();
+        Ok(GeoKeys { keys })
+    }
+
+    fn short(&self, id: u16) -> Option<u16> {
+        self.keys.iter().find_map(|(k, v)| match v {
+            KeyValue::Short(s) if *k == id => Some(*s),
+            _ => None,
+        })
+    }
+
+    fn double(&self, id: u16) -> Option<f64> {
+        self.keys.iter().find_map(|(k, v)| match v {
+            KeyValue::Doubles(d) if *k == id => d.first().copied(),
+            _ => None,
+        })
+    }
+
+    /// Whether GTRasterType is PixelIsPoint.
+    fn pixel_is_point(&self) -> bool {
+        self.short(key::RASTER_TYPE) == Some(RASTER_PIXEL_IS_POINT)
+    }
+
+    /// The CRS the keys describe.
+    fn crs(&self) -> Result<Crs, String> {
+        let code = |id| self.short(id).filter(|&c| c != 0 && c != USER_DEFINED).map(u32::from);
+        let model = match self.short(key::MODEL_TYPE) {
+            Some(m @ (MODEL_PROJECTED | MODEL_GEOGRAPHIC)) => m,
+            Some(MODEL_GEOCENTRIC) => {
+                return Err("geocentric model type is not supported".to_string());
+            }
+            _ if self.short(key::PROJECTED_CS_TYPE).is_some() => MODEL_PROJECTED,
+            _ if self.short(key::GEOGRAPHIC_TYPE).is_some() => MODEL_GEOGRAPHIC,
+            _ => return Ok(Crs::Unspecified),
+        };
+        if model == MODEL_GEOGRAPHIC {
+            return Ok(Crs::Geographic { epsg: code(key::GEOGRAPHIC_TYPE) });
+        }
+        let unit_to_metre = match self.short(key::PROJ_LINEAR_UNITS) {
+            None | Some(UNIT_METRE) => 1.0,
+            Some(UNIT_FOOT) => FOOT,
+            Some(UNIT_US_SURVEY_FOOT) => US_SURVEY_FOOT,
+            Some(UNIT_KILOMETRE) => 1000.0,
+            Some(USER_DEFINED) => self
+                .double(key::PROJ_LINEAR_UNIT_SIZE)
+                .filter(|s| s.is_finite() && *s > 0.0)
+                .ok_or("user-defined linear unit without a valid ProjLinearUnitSizeGeoKey")?,
+            Some(other) => return Err(format!("unsupported linear unit code {other}")),
+        };
+        Ok(Crs::Projected { epsg: code(key::PROJECTED_CS_TYPE), unit_to_metre })
+    }
+}
+
+/// The north-up transform from ModelTransformation or ModelTiepoint + ModelPixelScale;
+/// `Ok(None)` when the file has neither.
+fn transform_from_tags(
+    tiepoints: Option<&[f64]>,
+    scale: Option<&[f64]>,
+    matrix: Option<&[f64]>,
+    pixel_is_point: bool,
+) -> Result<Option<GeoTransform>, String> {
+    let (origin_x, origin_y, cell_width, cell_height) = if let Some(m) = matrix {
+        let &[a, b, _, d, e, f, _, h, ..] = m else {
+            return Err(format!("ModelTransformation has {} values, not 16", m.len()));
+        };
+        if b != 0.0 || e != 0.0 {
+            return Err("rotated or sheared ModelTransformation is not supported".to_string());
+        }
+        (d, h, a, -f)
+    } else {
+        let (Some(t), Some(s)) = (tiepoints, scale) else {
+            return match tiepoints {
+                Some(t) if t.len() > 6 => {
+                    Err("ground control points without ModelPixelScale are not supported".to_string())
+                }
+                _ => Ok(None),
+            };
+        };
+        let (&[i, j, _, x, y, ..], &[sx, sy, ..]) = (t, s) else {
+            return Err("ModelTiepoint or ModelPixelScale has too few values".to_string());
+        };
+        (x - i * sx, y + j * sy, sx, sy)
+    };
+    let positive = |v: f64| v > 0.0;
+    if !positive(cell_width) || !positive(cell_height) {
+        return Err(format!(
+            "cell size {cell_width} × {cell_height}: only north-up rasters with positive cell \
+             sizes are supported"
+        ));
+    }
+    let mut t = GeoTransform { origin_x, origin_y, cell_width, cell_height };
+    if pixel_is_point {
+        // The georeferenced point of a pixel is its centre: move to the corner.
+        t.origin_x -= 0.5 * cell_width;
+        t.origin_y += 0.5 * cell_height;
+    }
+    Ok(Some(t))
+}
+
+/// The bytes of a TIFF file with the first IFD's PhotometricInterpretation set to BlackIsZero,
+/// so that `tiff` decodes the raw samples. `None` if the entry cannot be found as a SHORT.
+fn with_black_is_zero(bytes: &[u8], ifd_offset: u64) -> Option<Vec<u8>> {
+    let big_endian = bytes.get(..2)? == b"MM";
+    let u16_at = |pos: usize| -> Option<u16> {
+        let b: [u8; 2] = bytes.get(pos..pos.checked_add(2)?)?.try_into().ok()?;
+        Some(if big_endian { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) })
+    };
+    let u64_at = |pos: usize| -> Option<u64> {
+        let b: [u8; 8] = bytes.get(pos..pos.checked_add(8)?)?.try_into().ok()?;
+        Some(if big_endian { u64::from_be_bytes(b) } else { u64::from_le_bytes(b) })
+    };
+    let bigtiff = u16_at(2)? == 43;
+    let ifd = usize::try_from(ifd_offset).ok()?;
+    // Classic: u16 count, 12-byte entries (tag, type, u32 count, 4-byte value).
+    // BigTIFF: u64 count, 20-byte entries (tag, type, u64 count, 8-byte value).
+    let (count, first, entry_len, value_at) = if bigtiff {
+        (usize::try_from(u64_at(ifd)?).ok()?, ifd + 8, 20, 12)
+    } else {
+        (usize::from(u16_at(ifd)?), ifd + 2, 12, 8)
+    };
+    const SHORT: u16 = 3;
+    let entry = (0..count)
+        .map(|i| first + i * entry_len)
+        .find(|&e| u16_at(e) == Some(Tag::PhotometricInterpretation.to_u16()))?;
+    if u16_at(entry + 2)? != SHORT {
+        return None;
+    }
+    let value = entry + value_at;
+    let new = PhotometricInterpretation::BlackIsZero.to_u16();
+    let mut patched = bytes.to_vec();
+    patched.get_mut(value..value + 2)?.copy_from_slice(&if big_endian { new.to_be_bytes() } else { new.to_le_bytes() });
+    Some(patched)
+}
+
+/// Parses a GDAL_NODATA string ("-9999", "nan", "-3.4028234663852886e+38").
+fn parse_nodata(text: &str) -> Option<f64> {
+    text.trim_matches(|c: char| c == '\0' || c.is_whitespace()).parse().ok()
+}
+
+/// Scales a TIFF ColorMap (all reds, then greens, then blues, 16 bit) to 8-bit RGB entries.
+fn palette_from_colormap(map: &[u16], bits: u16) -> Option<Vec<[u8; 3]>> {
+    let n = 1usize.checked_shl(u32::from(bits))?;
+    if map.len() != 3 * n {
+        return None;
+    }
+    // Rounded v / 257; at most 255, so the narrowing is exact.
+    let to8 = |v: u16| ((u32::from(v) + 128) / 257) as u8;
+    Some((0..n).map(|i| [to8(map[i]), to8(map[n + i]), to8(map[2 * n + i])]).collect())
+}
+
+/// Converts band 1 of decoded samples (`stride` samples per pixel) to `f64`.
+fn band1(result: DecodingResult, stride: usize) -> Vec<f64> {
+    fn pick<T: Copy + Into<f64>>(v: &[T], stride: usize) -> Vec<f64> {
+        v.iter().step_by(stride).map(|&x| x.into()).collect()
+    }
+    match result {
+        DecodingResult::U8(v) => pick(&v, stride),
+        DecodingResult::I8(v) => pick(&v, stride),
+        DecodingResult::U16(v) => pick(&v, stride),
+        DecodingResult::I16(v) => pick(&v, stride),
+        DecodingResult::U32(v) => pick(&v, stride),
+        DecodingResult::I32(v) => pick(&v, stride),
+        DecodingResult::F32(v) => pick(&v, stride),
+        DecodingResult::F64(v) => pick(&v, stride),
+        // Rejected by the sample type check before decoding; precision loss is acceptable for
+        // the unlikely case that a decoder ever returns them.
+        DecodingResult::U64(v) => v.iter().step_by(stride).map(|&x| x as f64).collect(),
+        DecodingResult::I64(v) => v.iter().step_by(stride).map(|&x| x as f64).collect(),
+        DecodingResult::F16(v) => v.iter().step_by(stride).map(|&x| f64::from(x)).collect(),
+    }
+}
+
+/// Number of decoded values of a result.
+fn result_len(result: &DecodingResult) -> usize {
+    match result {
+        DecodingResult::U8(v) => v.len(),
+        DecodingResult::I8(v) => v.len(),
+        DecodingResult::U16(v) => v.len(),
+        DecodingResult::I16(v) => v.len(),
+        DecodingResult::U32(v) => v.len(),
+        DecodingResult::I32(v) => v.len(),
+        DecodingResult::U64(v) => v.len(),
+        DecodingResult::I64(v) => v.len(),
+        DecodingResult::F16(v) => v.len(),
+        DecodingResult::F32(v) => v.len(),
+        DecodingResult::F64(v) => v.len(),
+    }
+}
+
+/// Reads band 1 of a GeoTIFF with its georeferencing, CRS, nodata and palette.
+pub fn read_geotiff(path: &Path) -> Result<Raster, GisError> {
+    let bytes = std::fs::read(path).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
+    let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
+    let bad_geo = |reason: String| GisError::BadGeoreferencing { path: path.to_path_buf(), reason };
+    let signature = bytes.get(..4);
+    if !matches!(signature, Some(b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+")) {
+        return Err(GisError::NotTiff { path: path.to_path_buf() });
+    }
+
+    let mut decoder = Decoder::new(Cursor::new(bytes.as_slice())).map_err(tiff_err)?;
+    let (width, height) = decoder.dimensions().map_err(tiff_err)?;
+    raster::check_dimensions(path, width.into(), height.into())?;
+
+    let shorts = |d: &mut Decoder<Cursor<&[u8]>>, tag| -> Result<Option<Vec<u16>>, GisError> {
+        d.find_tag(tag).and_then(|v| v.map(|v| v.into_u16_vec()).transpose()).map_err(tiff_err)
+    };
+    let doubles = |d: &mut Decoder<Cursor<&[u8]>>, tag| -> Result<Option<Vec<f64>>, GisError> {
+        d.find_tag(tag).and_then(|v| v.map(|v| v.into_f64_vec()).transpose()).map_err(tiff_err)
+    };
+
+    // Sample type of band 1 (formats are homogeneous, `tiff` checks that).
+    let bits = shorts(&mut decoder, Tag::BitsPerSample)?.and_then(|b| b.first().copied()).unwrap_or(1);
+    let format = shorts(&mut decoder, Tag::SampleFormat)?
+        .and_then(|f| f.first().copied())
+        .unwrap_or(SampleFormat::Uint.to_u16());
+    let sample_type = SampleType::from_tags(format, bits)
+        .map_err(|detail| GisError::UnsupportedSampleType { path: path.to_path_buf(), detail })?;
+    let photometric = shorts(&mut decoder, Tag::PhotometricInterpretation)?.and_then(|p| p.first().copied());
+    let planar = shorts(&mut decoder, Tag::PlanarConfiguration)?.and_then(|p| p.first().copied()) == Some(2);
+
+    // Georeferencing and CRS.
+    let geokeys = match shorts(&mut decoder, Tag::GeoKeyDirectoryTag)? {
+        Some(dir) => {
+            let params = doubles(&mut decoder, Tag::GeoDoubleParamsTag)?.unwrap_or_default();
+            GeoKeys::parse(&dir, &params).map_err(bad_geo)?
+        }
+        None => GeoKeys::default(),
+    };
+    let tiepoints = doubles(&mut decoder, Tag::ModelTiepointTag)?;
+    let scale = doubles(&mut decoder, Tag::ModelPixelScaleTag)?;
+    let matrix = doubles(&mut decoder, Tag::ModelTransformationTag)?;
+    let transform =
+        transform_from_tags(tiepoints.as_deref(), scale.as_deref(), matrix.as_deref(), geokeys.pixel_is_point())
+            .map_err(bad_geo)?
+            .ok_or_else(|| GisError::NoGeoreferencing { path: path.to_path_buf() })?;
+    raster::check_transform(path, &transform)?;
+    let crs = geokeys.crs().map_err(bad_geo)?;
+
+    let mut nodata = match decoder.find_tag(Tag::GdalNodata).map_err(tiff_err)? {
+        Some(v) => {
+            let text = v.into_string().map_err(tiff_err)?;
+            Some(parse_nodata(&text).ok_or_else(|| GisError::Tiff {
+                path: path.to_path_buf(),
+                message: format!("GDAL_NODATA value \"{}\" is not a number", text.trim()),
+            })?)
+        }
+        None => None,
+    };
+    if sample_type == SampleType::F32 {
+        // Cells hold f32 values: compare against the nodata value as f32 (like GDAL does).
+        nodata = nodata.map(|v| f64::from(v as f32));
+    }
+
+    let palette_code = PhotometricInterpretation::RGBPalette.to_u16();
+    let palette = if photometric == Some(palette_code) {
+        let map = shorts(&mut decoder, Tag::ColorMap)?;
+        Some(map.and_then(|m| palette_from_colormap(&m, bits)).ok_or_else(|| GisError::Tiff {
+            path: path.to_path_buf(),
+            message: "palette image without a valid ColorMap".to_string(),
+        })?)
+    } else {
+        None
+    };
+
+    let limits = {
+        let mut l = Limits::default();
+        // Cell counts are capped by MAX_CELLS; allow 8 bytes per cell (e.g. one f64 band or
+        // four u16 bands) so that a raster at the cap still decodes.
+        l.decoding_buffer_size = usize::try_from(raster::MAX_CELLS * 8).unwrap_or(usize::MAX);
+        l
+    };
+    let white_is_zero = PhotometricInterpretation::WhiteIsZero.to_u16();
+    let result = if photometric == Some(palette_code) || photometric == Some(white_is_zero) {
+        let patched =
+            decoder.ifd_pointer().and_then(|ifd| with_black_is_zero(&bytes, ifd.0)).ok_or_else(|| GisError::Tiff {
+                path: path.to_path_buf(),
+                message: "cannot locate the PhotometricInterpretation entry".to_string(),
+            })?;
+        let mut d = Decoder::new(Cursor::new(patched.as_slice())).map_err(tiff_err)?.with_limits(limits);
+        d.read_image().map_err(tiff_err)?
+    } else {
+        let mut d = decoder.with_limits(limits);
+        d.read_image().map_err(tiff_err)?
+    };
+
+    // Chunky images interleave all samples of a pixel; planar ones yield plane 1 only.
+    let cells = width as usize * height as usize;
+    let len = result_len(&result);
+    let stride = if planar { 1 } else { len / cells };
+    if stride == 0 || len != stride * cells {
+        return Err(GisError::Tiff {
+            path: path.to_path_buf(),
+            message: format!("decoded {len} samples for {width} × {height} pixels"),
+        });
+    }
+    let raster = Raster {
+        width: width as usize,
+        height: height as usize,
+        data: band1(result, stride),
+        nodata,
+        transform,
+        crs,
+        palette,
+    };
+    raster::check_not_all_nodata(path, &raster)?;
+    Ok(raster)
+}
+
+/// 8-bit palette colour type for the encoder (PhotometricInterpretation RGBPalette).
+struct Palette8;
+
+impl ColorType for Palette8 {
+    type Inner = u8;
+    const TIFF_VALUE: PhotometricInterpretation = PhotometricInterpretation::RGBPalette;
+    const BITS_PER_SAMPLE: &'static [u16] = &[8];
+    const SAMPLE_FORMAT: &'static [SampleFormat] = &[SampleFormat::Uint];
+
+    fn horizontal_predict(row: &[u8], result: &mut Vec<u8>) {
+        result.extend(row.first());
+        result.extend(row.windows(2).map(|w| w[1].wrapping_sub(w[0])));
+    }
+}
+
+/// The GeoKeyDirectory (and GeoDoubleParams) describing a CRS; `None` for unspecified.
+fn geokeys_for(crs: &Crs) -> Option<(Vec<u16>, Vec<f64>)> {
+    let mut keys: Vec<[u16; 4]> = Vec::new();
+    let mut doubles = Vec::new();
+    let short = |id: u16, v: u16| [id, 0, 1, v];
+    let epsg16 = |code: Option<u32>| code.and_then(|c| u16::try_from(c).ok());
+    match *crs {
+        Crs::Unspecified => return None,
+        Crs::Geographic { epsg } => {
+            keys.push(short(key::MODEL_TYPE, MODEL_GEOGRAPHIC));
+            keys.push(short(key::RASTER_TYPE, RASTER_PIXEL_IS_AREA));
+            if let Some(code) = epsg16(epsg) {
+                keys.push(short(key::GEOGRAPHIC_TYPE, code));
+            }
+        }
+        Crs::Projected { epsg, unit_to_metre } => {
+            keys.push(short(key::MODEL_TYPE, MODEL_PROJECTED));
+            keys.push(short(key::RASTER_TYPE, RASTER_PIXEL_IS_AREA));
+            if let Some(code) = epsg16(epsg) {
+                keys.push(short(key::PROJECTED_CS_TYPE, code));
+            }
+            let unit =
+                [(1.0, UNIT_METRE), (FOOT, UNIT_FOOT), (US_SURVEY_FOOT, UNIT_US_SURVEY_FOOT), (1000.0, UNIT_KILOMETRE)]
+                    .iter()
+                    .find(|(m, _)| (m - unit_to_metre).abs() <= 1e-12 * m)
+                    .map(|&(_, code)| code);
+            match unit {
+                Some(code) => keys.push(short(key::PROJ_LINEAR_UNITS, code)),
+                None => {
+                    keys.push(short(key::PROJ_LINEAR_UNITS, USER_DEFINED));
+                    keys.push([key::PROJ_LINEAR_UNIT_SIZE, 34736, 1, 0]);
+                    doubles.push(unit_to_metre);
+                }
+            }
+        }
+    }
+    // A handful of keys, so the count fits in u16.
+    let mut dir = vec![1, 1, 0, keys.len() as u16];
+    dir.extend(keys.iter().flatten());
+    Some((dir, doubles))
+}
+
+/// Encodes `data` as a single-band strip GeoTIFF of colour type `C` into memory.
+fn encode<C: ColorType>(
+    raster: &Raster,
+    data: &[C::Inner],
+    nodata: Option<String>,
+    colormap: Option<Vec<u16>>,
+) -> tiff::TiffResult<Vec<u8>>
+where
+    [C::Inner]: TiffValue,
+{
+    let width = u32::try_from(raster.width)?;
+    let height = u32::try_from(raster.height)?;
+    let mut buffer = Cursor::new(Vec::new());
+    {
+        let mut tiff = TiffEncoder::new(&mut buffer)?.with_compression(Compression::Deflate(DeflateLevel::Balanced));
+        let mut image = tiff.new_image::<C>(width, height)?;
+        let dir = image.encoder();
+        let t = &raster.transform;
+        dir.write_tag(Tag::ModelPixelScaleTag, &[t.cell_width, t.cell_height, 0.0][..])?;
+        dir.write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, t.origin_x, t.origin_y, 0.0][..])?;
+        if let Some((keys, doubles)) = geokeys_for(&raster.crs) {
+            dir.write_tag(Tag::GeoKeyDirectoryTag, &keys[..])?;
+            if !doubles.is_empty() {
+                dir.write_tag(Tag::GeoDoubleParamsTag, &doubles[..])?;
+            }
+        }
+        if let Some(text) = &nodata {
+            dir.write_tag(Tag::GdalNodata, text.as_str())?;
+        }
+        if let Some(map) = &colormap {
+            dir.write_tag(Tag::ColorMap, &map[..])?;
+        }
+        image.write_data(data)?;
+    }
+    Ok(buffer.into_inner())
+}
+
+/// Checks the data length and writes encoded bytes to `path`.
+fn finish_write(path: &Path, encoded: tiff::TiffResult<Vec<u8>>) -> Result<(), GisError> {
+    let write_err = |message: String| GisError::Write { path: path.to_path_buf(), message };
+    let bytes = encoded.map_err(|e| write_err(e.to_string()))?;
+    std::fs::write(path, bytes).map_err(|e| write_err(e.to_string()))
+}
+
+/// Checks that `raster.data` holds `width × height` values.
+fn check_data_len(path: &Path, raster: &Raster) -> Result<(), GisError> {
+    let expected = raster.width.checked_mul(raster.height);
+    if expected != Some(raster.data.len()) || raster.data.is_empty() {
+        return Err(GisError::Write {
+            path: path.to_path_buf(),
+            message: format!(
+                "raster holds {} values for {} × {} cells",
+                raster.data.len(),
+                raster.width,
+                raster.height
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Writes an 8-bit GeoTIFF. Valid cells must be integers in 0..=255; nodata (and NaN) cells
+/// are written as the raster's nodata value, which must then be such an integer too. With a
+/// palette (at most 256 entries) the file is a palette image with that ColorMap.
+pub fn write_geotiff_u8(path: &Path, raster: &Raster, palette: Option<&[[u8; 3]]>) -> Result<(), GisError> {
+    check_data_len(path, raster)?;
+    let write_err = |message: String| GisError::Write { path: path.to_path_buf(), message };
+    let as_u8 = |v: f64| (v.fract() == 0.0 && (0.0..=255.0).contains(&v)).then_some(v as u8);
+    let nodata = match raster.nodata {
+        Some(v) if !v.is_nan() => {
+            Some(as_u8(v).ok_or_else(|| write_err(format!("nodata value {v} does not fit an 8-bit unsigned cell")))?)
+        }
+        _ => None,
+    };
+    let mut data = Vec::with_capacity(raster.data.len());
+    for (i, &v) in raster.data.iter().enumerate() {
+        let cell = if raster.is_valid(v) { as_u8(v) } else { nodata };
+        data.push(cell.ok_or_else(|| {
+            write_err(format!(
+                "cell (column {}, row {}) value {v} does not fit an 8-bit unsigned cell",
+                i % raster.width,
+                i / raster.width
+            ))
+        })?);
+    }
+    let nodata_text = nodata.map(|n| n.to_string());
+    let encoded = match palette {
+        Some(p) => {
+            if p.is_empty() || p.len() > 256 {
+                return Err(write_err(format!("palette has {} entries (1 to 256 allowed)", p.len())));
+            }
+            let mut map = vec![0u16; 3 * 256];
+            for (i, rgb) in p.iter().enumerate() {
+                for (channel, &c) in rgb.iter().enumerate() {
+                    map[channel * 256 + i] = u16::from(c) * 257;
+                }
+            }
+            encode::<Palette8>(raster, &data, nodata_text, Some(map))
+        }
+        None => encode::<Gray8>(raster, &data, nodata_text, None),
+    };
+    finish_write(path, encoded)
+}
+
+/// Writes a 32-bit float GeoTIFF. Nodata cells are written as the nodata value (as `f32`), or
+/// NaN if the raster has none.
+pub fn write_geotiff_f32(path: &Path, raster: &Raster) -> Result<(), GisError> {
+    check_data_len(path, raster)?;
+    let fill = raster.nodata.map_or(f32::NAN, |v| v as f32);
+    let data: Vec<f32> = raster.data.iter().map(|&v| if raster.is_valid(v) { v as f32 } else { fill }).collect();
+    let nodata_text = raster.nodata.map(|v| {
+        let v = v as f32;
+        if v.is_nan() { "nan".to_string() } else { v.to_string() }
+    });
+    finish_write(path, encode::<Gray32Float>(raster, &data, nodata_text, None))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sample_types() {
+        assert_eq!(SampleType::from_tags(1, 8), Ok(SampleType::U8));
+        assert_eq!(SampleType::from_tags(2, 16), Ok(SampleType::I16));
+        assert_eq!(SampleType::from_tags(3, 64), Ok(SampleType::F64));
+        let err = SampleType::from_tags(6, 64).unwrap_err();
+        assert!(err.contains("complex float"), "{err}");
+        assert!(SampleType::from_tags(1, 1).unwrap_err().contains("1-bit"));
+        assert!(SampleType::from_tags(3, 16).is_err());
+        assert!(SampleType::from_tags(1, 64).is_err());
+    }
+
+    #[test]
+    fn geokeys_user_defined_projection_and_units() {
+        let dir = [
+            1, 1, 0, 4, //
+            1024, 0, 1, 1, //
+            1025, 0, 1, 2, //
+            3072, 0, 1, 32767, //
+            3076, 0, 1, 9003,
+        ];
+        let keys = GeoKeys::parse(&dir, &[]).unwrap();
+        assert!(keys.pixel_is_point());
+        assert_eq!(keys.crs().unwrap(), Crs::Projected { epsg: None, unit_to_metre: US_SURVEY_FOOT });
+        let dir = [1, 1, 0, 2, 1024, 0, 1, 1, 3076, 0, 1, 32767];
+        assert!(GeoKeys::parse(&dir, &[]).unwrap().crs().is_err());
+        let dir = [1, 1, 0, 3, 1024, 0, 1, 1, 3076, 0, 1, 32767, 3077, 34736, 1, 1];
+        assert_eq!(
+            GeoKeys::parse(&dir, &[0.0, 2.5]).unwrap().crs().unwrap(),
+            Crs::Projected { epsg: None, unit_to_metre: 2.5 }
+        );
+        assert!(GeoKeys::parse(&[1, 1, 0, 2, 1024, 0, 1, 1], &[]).is_err());
+        assert!(GeoKeys::parse(&[1, 1], &[]).is_err());
+        assert_eq!(GeoKeys::parse(&[1, 1, 0, 0], &[]).unwrap().crs().unwrap(), Crs::Unspecified);
+    }
+
+    #[test]
+    fn geokeys_written_are_read_back() {
+        for crs in [
+            Crs::Geographic { epsg: Some(4326) },
+            Crs::Geographic { epsg: None },
+            Crs::Projected { epsg: Some(32613), unit_to_metre: 1.0 },
+            Crs::Projected { epsg: None, unit_to_metre: FOOT },
+            Crs::Projected { epsg: None, unit_to_metre: 1.7 },
+        ] {
+            let (dir, doubles) = geokeys_for(&crs).unwrap();
+            assert_eq!(GeoKeys::parse(&dir, &doubles).unwrap().crs().unwrap(), crs);
+        }
+        assert!(geokeys_for(&Crs::Unspecified).is_none());
+    }
+
+    #[test]
+    fn transforms() {
+        let t = transform_from_tags(Some(&[0.0, 0.0, 0.0, 10.0, 20.0, 0.0]), Some(&[2.0, 3.0, 0.0]), None, false)
+            .unwrap()
+            .unwrap();
+        assert_eq!((t.origin_x, t.origin_y, t.cell_width, t.cell_height), (10.0, 20.0, 2.0, 3.0));
+        // Tiepoint at pixel (1, 2), PixelIsPoint.
+        let t = transform_from_tags(Some(&[1.0, 2.0, 0.0, 10.0, 20.0, 0.0]), Some(&[2.0, 3.0, 0.0]), None, true)
+            .unwrap()
+            .unwrap();
+        assert_eq!((t.origin_x, t.origin_y), (10.0 - 2.0 - 1.0, 20.0 + 6.0 + 1.5));
+        let m = [
+            2.0, 0.0, 0.0, 10.0, //
+            0.0, -3.0, 0.0, 20.0, //
+            0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 1.0,
+        ];
+        let t = transform_from_tags(None, None, Some(&m), false).unwrap().unwrap();
+        assert_eq!((t.origin_x, t.origin_y, t.cell_width, t.cell_height), (10.0, 20.0, 2.0, 3.0));
+        let mut rotated = m;
+        rotated[1] = 0.1;
+        assert!(transform_from_tags(None, None, Some(&rotated), false).is_err());
+        let mut south_up = m;
+        south_up[5] = 3.0;
+        assert!(transform_from_tags(None, None, Some(&south_up), false).is_err());
+        assert_eq!(transform_from_tags(None, Some(&[1.0, 1.0, 0.0]), None, false), Ok(None));
+        assert!(transform_from_tags(Some(&[0.0; 12]), None, None, false).is_err());
+    }
+
+    #[test]
+    fn palette_scaling_and_nodata_text() {
+        let mut map = vec![0u16; 6];
+        map[0] = 65535;
+        map[3] = 71 * 257;
+        map[5] = 128;
+        assert_eq!(palette_from_colormap(&map, 1), Some(vec![[255, 0, 0], [0, 71, 0]]));
+        assert_eq!(palette_from_colormap(&map, 2), None);
+        assert_eq!(parse_nodata("-9999\0"), Some(-9999.0));
+        assert!(parse_nodata(" nan ").is_some_and(f64::is_nan));
+        assert_eq!(parse_nodata("none"), None);
+    }
+
+    #[test]
+    fn patching_rejects_garbage() {
+        assert_eq!(with_black_is_zero(b"II*\0", 8), None);
+        assert_eq!(with_black_is_zero(b"", 0), None);
+        assert_eq!(with_black_is_zero(b"II*\0\x08\0\0\0\xff\xff", 8), None);
+    }
+}

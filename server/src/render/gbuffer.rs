@@ -1,0 +1,294 @@
+//! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
+
+use crate::scene::camera::Camera;
+use bytemuck::{Pod, Zeroable};
+
+/// Albedo (linear RGB) and coverage (alpha: 1 where geometry was drawn).
+pub const ALBEDO_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// World-space normal (xyz) and part kind (w: 0 terrain, 1 wood, 2 foliage).
+pub const NORMAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+/// Linear view depth in metres; the background holds [`BACKGROUND_DEPTH`].
+pub const LINEAR_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+/// Object/patch ID: layer code in the top 8 bits, object index + 1 below; 0 = background.
+pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// Hardware depth (reverse Z) used for the depth test only.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Linear depth written where no geometry is: "infinitely" far, so the horizon gets a contour.
+pub const BACKGROUND_DEPTH: f64 = 1.0e7;
+
+/// Layer code of the terrain in the ID buffer; vegetation layer `i` has code `i + 2`.
+pub const TERRAIN_LAYER_CODE: u32 = 1;
+
+/// Builds an object ID for the ID buffer from a layer code and an object index.
+pub fn object_id(layer_code: u32, index: u32) -> u32 {
+    (layer_code << 24) | ((index + 1) & 0x00FF_FFFF)
+}
+
+/// The render targets of stage one for one image size.
+pub struct GBuffer {
+    pub width: u32,
+    pub height: u32,
+    pub albedo: wgpu::TextureView,
+    pub normal: wgpu::TextureView,
+    pub linear_depth: wgpu::TextureView,
+    pub id: wgpu::TextureView,
+    /// The ID target itself, for reading object IDs back.
+    pub id_texture: wgpu::Texture,
+    pub depth: wgpu::TextureView,
+}
+
+/// Creates a 2D render target that later passes can read.
+pub fn render_target(
+    device: &wgpu::Device,
+    label: &str,
+    format: wgpu::TextureFormat,
+    width: u32,
+    height: u32,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
+impl GBuffer {
+    /// Allocates all targets for a `width` × `height` image.
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> GBuffer {
+        let view = |label, format| render_target(device, label, format, width, height).create_view(&Default::default());
+        let id_texture = render_target(device, "gbuffer id", ID_FORMAT, width, height);
+        GBuffer {
+            width,
+            height,
+            albedo: view("gbuffer albedo", ALBEDO_FORMAT),
+            normal: view("gbuffer normal", NORMAL_FORMAT),
+            linear_depth: view("gbuffer linear depth", LINEAR_DEPTH_FORMAT),
+            id: id_texture.create_view(&Default::default()),
+            id_texture,
+            depth: view("gbuffer depth", DEPTH_FORMAT),
+        }
+    }
+}
+
+/// Per-frame uniforms of the geometry pass (`Frame` in `shaders/gbuffer.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct FrameUniform {
+    view_proj: [[f32; 4]; 4],
+    view: [[f32; 4]; 4],
+    camera_pos: [f32; 4],
+}
+
+impl FrameUniform {
+    /// The uniforms for `camera` rendering an image of the given aspect ratio.
+    pub fn new(camera: &Camera, aspect: f32) -> FrameUniform {
+        let view = camera.view();
+        let p = camera.position;
+        FrameUniform {
+            view_proj: (camera.projection(aspect) * view).to_cols_array_2d(),
+            view: view.to_cols_array_2d(),
+            camera_pos: [p[0], p[1], p[2], 1.0],
+        }
+    }
+}
+
+/// Per-material uniforms (`Material` in `shaders/gbuffer.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct MaterialUniform {
+    pub base_color: [f32; 4],
+    /// x: alpha cutoff (negative: opaque), y: part kind (0 terrain, 1 wood, 2 foliage).
+    pub params: [f32; 4],
+}
+
+/// One mesh vertex as the geometry pass reads it.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+}
+
+/// One instance of a mesh: placement, uniform scale, rotation about z and object ID.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct Instance {
+    pub offset_scale: [f32; 4],
+    pub rotation: [f32; 2],
+    pub object_id: u32,
+    pub _pad: u32,
+}
+
+/// The geometry pass pipeline and the bind group layouts meshes and frames are bound with.
+pub struct GeometryPass {
+    pub pipeline: wgpu::RenderPipeline,
+    pub frame_layout: wgpu::BindGroupLayout,
+    pub material_layout: wgpu::BindGroupLayout,
+    pub sampler: wgpu::Sampler,
+}
+
+fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A bind group layout entry for a texture read by a fragment shader.
+pub fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A uniform-buffer bind group layout entry (shared by the post passes).
+pub fn uniform_layout_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    uniform_entry(binding, wgpu::ShaderStages::VERTEX_FRAGMENT)
+}
+
+impl GeometryPass {
+    /// Compiles `shaders/gbuffer.wgsl` and builds the pipeline.
+    pub fn new(device: &wgpu::Device) -> GeometryPass {
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("gbuffer.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/gbuffer.wgsl").into()),
+        });
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("frame"),
+            entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
+        });
+        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("material"),
+            entries: &[
+                uniform_entry(0, wgpu::ShaderStages::FRAGMENT),
+                texture_entry(1, wgpu::TextureSampleType::Float { filterable: true }),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("gbuffer"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
+            immediate_size: 0,
+        });
+        let vertex_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+        let instance_attrs = wgpu::vertex_attr_array![3 => Float32x4, 4 => Float32x2, 5 => Uint32];
+        let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("gbuffer"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[
+                    Some(wgpu::VertexBufferLayout {
+                        array_stride: std::mem::size_of::<Vertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &vertex_attrs,
+                    }),
+                    Some(wgpu::VertexBufferLayout {
+                        array_stride: std::mem::size_of::<Instance>() as u64,
+                        step_mode: wgpu::VertexStepMode::Instance,
+                        attributes: &instance_attrs,
+                    }),
+                ],
+            },
+            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[
+                    target(ALBEDO_FORMAT),
+                    target(NORMAL_FORMAT),
+                    target(LINEAR_DEPTH_FORMAT),
+                    target(ID_FORMAT),
+                ],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("material"),
+            address_mode_u: wgpu::AddressMode::Repeat,
+            address_mode_v: wgpu::AddressMode::Repeat,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            ..Default::default()
+        });
+        GeometryPass { pipeline, frame_layout, material_layout, sampler }
+    }
+
+    /// Clears the G-buffer and draws every batch of `scene` into it.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        gbuffer: &GBuffer,
+        frame: &wgpu::BindGroup,
+        scene: &super::scene_gpu::SceneGpu,
+    ) {
+        let clear = |view, color| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(color), store: wgpu::StoreOp::Store },
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("gbuffer"),
+            color_attachments: &[
+                clear(&gbuffer.albedo, wgpu::Color::TRANSPARENT),
+                clear(&gbuffer.normal, wgpu::Color::TRANSPARENT),
+                clear(&gbuffer.linear_depth, wgpu::Color { r: BACKGROUND_DEPTH, g: 0.0, b: 0.0, a: 0.0 }),
+                clear(&gbuffer.id, wgpu::Color::TRANSPARENT),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &gbuffer.depth,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(0.0), store: wgpu::StoreOp::Discard }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, frame, &[]);
+        scene.draw(&mut pass);
+    }
+}

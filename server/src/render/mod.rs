@@ -1,0 +1,40 @@
+//! Offscreen wgpu rendering in two stages (thesis 8.2, NPAR §9): a G-buffer pass that draws
+//! terrain and instanced plants into several render targets, then post-processing passes that
+//! turn the G-buffer into a pen-and-ink image. All style parameters live in [`style::Style`].
+
+pub mod device;
+pub mod gbuffer;
+pub mod post;
+mod readback;
+pub mod renderer;
+pub mod scene_gpu;
+pub mod style;
+
+pub use device::Gpu;
+pub use renderer::Renderer;
+pub use style::Style;
+
+/// Errors raised while setting up the GPU or rendering a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// No adapter (GPU or software rasterizer such as lavapipe) could be found.
+    #[error(
+        "no graphics adapter found ({0}); on a machine without a GPU install Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1"
+    )]
+    NoAdapter(String),
+    /// The adapter refused to create a device.
+    #[error("cannot create a device on adapter '{adapter}': {message}")]
+    Device { adapter: String, message: String },
+    /// A validation or out-of-memory error reported by wgpu while rendering.
+    #[error("GPU error during {stage}: {message}")]
+    Gpu { stage: &'static str, message: String },
+    /// Waiting for the GPU or mapping the read-back buffer failed.
+    #[error("reading the frame back from the GPU failed: {0}")]
+    Readback(String),
+    /// The requested image size is empty or larger than the device allows.
+    #[error("image size {width}x{height} is out of range (1..={max} per side)")]
+    Size { width: u32, height: u32, max: u32 },
+    /// A style parameter is outside its allowed range.
+    #[error("style parameter `{field}` = {value} is out of range ({range})")]
+    Style { field: &'static str, value: f32, range: &'static str },
+}

@@ -1,0 +1,171 @@
+//! The landscape scene: terrain mesh, plant models, vegetation placement and the scene file.
+
+pub mod camera;
+pub mod config;
+pub mod gltf_loader;
+pub mod mesh;
+pub mod plant;
+pub mod procedural;
+pub mod terrain;
+pub mod vegetation;
+
+use crate::gis::{self, GisError};
+use camera::Camera;
+use config::{SceneConfig, SpeciesConfig};
+use plant::{ModelError, PlantModel};
+use std::path::{Path, PathBuf};
+use terrain::Terrain;
+use tracing::info;
+use vegetation::{PlacementRule, PlantInstance};
+
+/// Errors raised while loading a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: cannot read scene file: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error(transparent)]
+    Gis(#[from] GisError),
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// A plant species: a name and its model.
+#[derive(Debug, Clone)]
+pub struct Species {
+    pub name: String,
+    pub model: PlantModel,
+}
+
+/// A named group of plants (SPEC S4), e.g. `existing` or `planned`.
+#[derive(Debug, Clone)]
+pub struct VegetationLayer {
+    pub name: String,
+    pub plants: Vec<PlantInstance>,
+}
+
+/// Direction of the sunlight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sun {
+    /// Degrees clockwise from north.
+    pub azimuth: f32,
+    /// Degrees above the horizon.
+    pub elevation: f32,
+}
+
+impl Sun {
+    /// Unit vector from the ground towards the sun (x east, y north, z up).
+    pub fn direction(&self) -> glam::Vec3 {
+        let (az, el) = (self.azimuth.to_radians(), self.elevation.to_radians());
+        glam::Vec3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin())
+    }
+}
+
+/// A loaded scene, ready to upload to the GPU.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub name: String,
+    pub terrain: Terrain,
+    pub species: Vec<Species>,
+    pub layers: Vec<VegetationLayer>,
+    pub sun: Sun,
+    pub default_camera: Camera,
+}
+
+impl Scene {
+    /// Loads a scene file and everything it names: DEM, models, land cover; places plants.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
+        let config: SceneConfig =
+            toml::from_str(&text).map_err(|e| SceneError::Parse { path: path.to_owned(), message: e.to_string() })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        Scene::from_config(&config, base).map_err(|e| match e {
+            SceneError::Invalid(message) => SceneError::Parse { path: path.to_owned(), message },
+            other => other,
+        })
+    }
+
+    /// Builds a scene from a parsed config; relative paths are resolved against `base`.
+    pub fn from_config(config: &SceneConfig, base: &Path) -> Result<Scene, SceneError> {
+        let mut dem = gis::load_raster(&base.join(&config.terrain.dem))?;
+        if let Some(crs) = &config.terrain.crs {
+            dem.crs = crs.parse().map_err(|e: GisError| SceneError::Invalid(format!("terrain.crs: {e}")))?;
+        }
+        let terrain = Terrain::new(dem, config.terrain.albedo)?;
+
+        let names: Vec<&String> = config.species.keys().collect();
+        let species = config
+            .species
+            .iter()
+            .map(|(name, s)| Ok(Species { name: name.clone(), model: load_species(name, s, base)? }))
+            .collect::<Result<Vec<_>, SceneError>>()?;
+
+        let mut layers = Vec::new();
+        for layer in &config.layers {
+            let landcover = gis::load_raster(&base.join(&layer.landcover))?;
+            let rules = layer
+                .rules
+                .iter()
+                .map(|r| {
+                    let species = names.iter().position(|n| **n == r.species).ok_or_else(|| {
+                        SceneError::Invalid(format!("layer '{}': rule names unknown species '{}'", layer.name, r.species))
+                    })?;
+                    if !(r.density >= 0.0 && r.density <= 10_000.0 && r.min_spacing >= 0.0 && r.scale[0] > 0.0 && r.scale[1] >= r.scale[0]) {
+                        return Err(SceneError::Invalid(format!(
+                            "layer '{}': rule for class {} needs 0 <= density <= 10000, min_spacing >= 0 and 0 < scale[0] <= scale[1]",
+                            layer.name, r.class
+                        )));
+                    }
+                    Ok(PlacementRule { class: r.class, species, density_per_ha: r.density, min_spacing: r.min_spacing, scale: r.scale })
+                })
+                .collect::<Result<Vec<_>, SceneError>>()?;
+            let plants = vegetation::place(&terrain, &landcover, &rules, layer.seed, config.max_plants)?;
+            info!(layer = %layer.name, plants = plants.len(), "vegetation placed");
+            layers.push(VegetationLayer { name: layer.name.clone(), plants });
+        }
+
+        let cam = config.camera;
+        let ground = terrain.height_at(f64::from(cam.position[0]), f64::from(cam.position[1]));
+        let z = match (cam.z, ground) {
+            (Some(z), _) => z,
+            (None, Some(h)) => h as f32 + cam.eye_height,
+            (None, None) => {
+                return Err(SceneError::Invalid(format!(
+                    "camera position {:?} is outside the terrain; give `z` or move it onto the DEM",
+                    cam.position
+                )));
+            }
+        };
+        let default_camera =
+            Camera { position: [cam.position[0], cam.position[1], z], yaw: cam.yaw, pitch: cam.pitch, fov: cam.fov };
+        if !default_camera.is_valid() {
+            return Err(SceneError::Invalid(
+                "camera: pitch must be within -90..=90 and fov within 1..=170 degrees".into(),
+            ));
+        }
+        Ok(Scene {
+            name: config.name.clone(),
+            terrain,
+            species,
+            layers,
+            sun: Sun { azimuth: config.sun.azimuth, elevation: config.sun.elevation },
+            default_camera,
+        })
+    }
+
+    /// Number of plants over all layers.
+    pub fn plant_count(&self) -> usize {
+        self.layers.iter().map(|l| l.plants.len()).sum()
+    }
+}
+
+fn load_species(name: &str, config: &SpeciesConfig, base: &Path) -> Result<PlantModel, SceneError> {
+    match (&config.model, config.procedural) {
+        (Some(model), None) => Ok(gltf_loader::load_gltf(&base.join(model))?),
+        (None, Some(kind)) => Ok(procedural::procedural_plant(kind, config.seed)),
+        _ => Err(SceneError::Invalid(format!("species '{name}': give exactly one of `model` or `procedural`"))),
+    }
+}

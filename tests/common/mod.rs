@@ -1,0 +1,66 @@
+//! Helpers shared by the image tests: reference comparison with a tolerance and image
+//! statistics.
+
+use image::RgbaImage;
+use std::path::{Path, PathBuf};
+
+/// Per-channel difference (0..255) above which a pixel counts as an outlier.
+pub const PIXEL_TOLERANCE: u8 = 64;
+
+/// Luminance of an sRGB pixel in 0..1 (Rec. 709 weights on the encoded values).
+pub fn luminance(p: &image::Rgba<u8>) -> f32 {
+    (0.2126 * f32::from(p[0]) + 0.7152 * f32::from(p[1]) + 0.0722 * f32::from(p[2])) / 255.0
+}
+
+/// Fraction of pixels whose luminance satisfies `pred`.
+pub fn fraction(image: &RgbaImage, pred: impl Fn(f32) -> bool) -> f64 {
+    image.pixels().filter(|p| pred(luminance(p))).count() as f64 / f64::from(image.width() * image.height())
+}
+
+fn sibling(reference: &Path, suffix: &str) -> PathBuf {
+    let stem = reference.file_stem().and_then(|s| s.to_str()).unwrap_or("image");
+    std::env::temp_dir().join("landsketch-test-images").join(format!("{stem}-{suffix}.png"))
+}
+
+/// Compares `actual` with the reference PNG: a pixel is an outlier when any channel differs by
+/// more than [`PIXEL_TOLERANCE`]; the test fails when more than `max_outlier_fraction` of the
+/// pixels are outliers. On failure the actual image and a diff image (outliers red) are
+/// written to `$TMPDIR/landsketch-test-images/` and named in the panic message.
+/// `LANDSKETCH_UPDATE_REFERENCES=1` rewrites the reference instead.
+pub fn assert_matches_reference(actual: &RgbaImage, reference: &Path, max_outlier_fraction: f64) {
+    if std::env::var_os("LANDSKETCH_UPDATE_REFERENCES").is_some() {
+        actual.save(reference).expect("write reference");
+        return;
+    }
+    let expected = image::open(reference)
+        .unwrap_or_else(|e| panic!("cannot open reference {}: {e} (set LANDSKETCH_UPDATE_REFERENCES=1)", reference.display()))
+        .to_rgba8();
+    assert_eq!(expected.dimensions(), actual.dimensions(), "image size differs from {}", reference.display());
+    let mut diff = RgbaImage::new(actual.width(), actual.height());
+    let mut outliers = 0usize;
+    for ((a, e), d) in actual.pixels().zip(expected.pixels()).zip(diff.pixels_mut()) {
+        let worst = (0..3).map(|c| a[c].abs_diff(e[c])).max().unwrap_or(0);
+        *d = if worst > PIXEL_TOLERANCE {
+            outliers += 1;
+            image::Rgba([255, 0, 0, 255])
+        } else {
+            let g = 255 - worst * 3;
+            image::Rgba([g, g, g, 255])
+        };
+    }
+    let share = outliers as f64 / f64::from(actual.width() * actual.height());
+    if share > max_outlier_fraction {
+        let (actual_path, diff_path) = (sibling(reference, "actual"), sibling(reference, "diff"));
+        std::fs::create_dir_all(actual_path.parent().expect("temp dir")).expect("create output dir");
+        actual.save(&actual_path).expect("write actual");
+        diff.save(&diff_path).expect("write diff");
+        panic!(
+            "{:.3}% of pixels differ from {} by more than {PIXEL_TOLERANCE} (allowed {:.3}%); see {} and {}",
+            share * 100.0,
+            reference.display(),
+            max_outlier_fraction * 100.0,
+            actual_path.display(),
+            diff_path.display()
+        );
+    }
+}
