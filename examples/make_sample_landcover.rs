@@ -101,8 +101,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (cx, cy) = planned.cell_center(col, row);
             let (x, y) = frame.to_local(cx, cy);
             let open = existing.data[row * w + col] != f64::from(FOREST);
-            let patch = ((x - 80.0) / 110.0).powi(2) + ((y - 210.0) / 70.0).powi(2) < 1.0;
-            let hedge = (y - (10.0 + 0.3 * x)).abs() < 8.0 && (-180.0..260.0).contains(&x);
+            let patch = ((x + 290.0) / 110.0).powi(2) + ((y - 190.0) / 70.0).powi(2) < 1.0;
+            let hedge = (y - (70.0 + 0.3 * x)).abs() < 8.0 && (-470.0..-80.0).contains(&x);
             planned.data[row * w + col] = f64::from(match (open, patch, hedge) {
                 (true, true, _) => PLANNED_WOODLAND,
                 (true, false, true) => PLANNED_HEDGEROW,

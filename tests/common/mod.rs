@@ -33,7 +33,9 @@ pub fn assert_matches_reference(actual: &RgbaImage, reference: &Path, max_outlie
         return;
     }
     let expected = image::open(reference)
-        .unwrap_or_else(|e| panic!("cannot open reference {}: {e} (set LANDSKETCH_UPDATE_REFERENCES=1)", reference.display()))
+        .unwrap_or_else(|e| {
+            panic!("cannot open reference {}: {e} (set LANDSKETCH_UPDATE_REFERENCES=1)", reference.display())
+        })
         .to_rgba8();
     assert_eq!(expected.dimensions(), actual.dimensions(), "image size differs from {}", reference.display());
     let mut diff = RgbaImage::new(actual.width(), actual.height());
