@@ -19,7 +19,13 @@ impl Gpu {
     }
 
     async fn open() -> Result<Gpu, RenderError> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if wgpu::Backends::from_env().is_none() {
+            // Vulkan/Metal/DX12 only: the GL backend needs workarounds on llvmpipe and, without a
+            // display, fails to initialise EGL noisily. `WGPU_BACKEND=gl` still selects it.
+            descriptor.backends = wgpu::Backends::PRIMARY;
+        }
+        let instance = wgpu::Instance::new(descriptor);
         let adapter = match wgpu::util::initialize_adapter_from_env(&instance, None).await {
             Ok(adapter) => adapter,
             Err(_) => Self::pick_adapter(&instance).await?,
