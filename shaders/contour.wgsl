@@ -1,20 +1,46 @@
-// Post pass 1: image-space contours from linear depth (thesis 5.1).
+// Post pass 1: image-space contours from linear depth (thesis 5.1) and the tone image
+// (thesis 6.1.3).
 
 @group(0) @binding(1) var depth_tex: texture_2d<f32>;
+@group(0) @binding(2) var albedo_tex: texture_2d<f32>;
+@group(0) @binding(3) var normal_tex: texture_2d<f32>;
 
 // Thesis eq. 5.1: p0 = max_i sat((d_i - d0) c - t) over the 3x3 neighbourhood, with signed
 // differences so that contours are one pixel wide and lie on the nearer surface. Depths are
-// taken relative to d0 (d_i / d0 - 1) so one threshold works from the foreground to the horizon.
+// taken relative to d0 (d_i / d0 - 1) so one threshold works from the foreground to the
+// horizon, and far plant groups merge (their relative depth steps shrink) instead of turning
+// into noise (thesis 7.3).
+fn contour(p: vec2<i32>) -> f32 {
+    let size = textureDimensions(depth_tex);
+    let d0 = textureLoad(depth_tex, p, 0).r;
+    var edge = 0.0;
+    for (var i = 0; i < 9; i++) {
+        let di = textureLoad(depth_tex, clamp_coord(p + vec2<i32>(i % 3 - 1, i / 3 - 1), size), 0).r;
+        edge = max(edge, saturate((di / d0 - 1.0) * post.contour.x - post.contour.y));
+    }
+    return edge;
+}
+
+// Thesis 6.1.3: Lambert light from the (HLP-blended) normal with ambient light, darkened by the
+// albedo, contrast about L_ref (eq. 6.7: L' = (L - L_ref) scale + L_ref) and optional banding.
+fn tone(p: vec2<i32>) -> f32 {
+    let albedo = textureLoad(albedo_tex, p, 0);
+    if albedo.a < 0.5 {
+        return 1.0;
+    }
+    let n = normalize(textureLoad(normal_tex, p, 0).xyz);
+    let light = post.light.w + (1.0 - post.light.w) * max(dot(n, post.light.xyz), 0.0);
+    let lum = sqrt(dot(albedo.rgb, vec3<f32>(0.2126, 0.7152, 0.0722)));
+    let l = light * mix(1.0, lum, post.tone.x);
+    var t = saturate((l - post.tone.z) * post.tone.y + post.tone.z);
+    if post.tone2.x > 0.0 {
+        t = round(t * post.tone2.x) / post.tone2.x;
+    }
+    return t;
+}
+
 @fragment
 fn fs_contour(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(frag.xy);
-    let d0 = textureLoad(depth_tex, p, 0).r;
-    var edge = 0.0;
-    for (var dy = -1; dy <= 1; dy++) {
-        for (var dx = -1; dx <= 1; dx++) {
-            let di = textureLoad(depth_tex, clamp_coord(p + vec2<i32>(dx, dy)), 0).r;
-            edge = max(edge, saturate((di / d0 - 1.0) * post.contour.x - post.contour.y));
-        }
-    }
-    return vec4<f32>(edge, 0.0, 0.0, 1.0);
+    return vec4<f32>(contour(p), tone(p), 0.0, 1.0);
 }

@@ -4,24 +4,13 @@
 
 mod common;
 
-use common::{assert_matches_reference, fraction, luminance};
-use landsketch::gis::{Crs, GeoTransform, Raster};
+use common::{assert_matches_reference, fraction, gpu, luminance, trees_on_a_plain};
 use landsketch::render::gbuffer::TERRAIN_LAYER_CODE;
-use landsketch::render::{Gpu, RenderError, Renderer, Style};
-use landsketch::scene::camera::Camera;
-use landsketch::scene::procedural::{ProceduralKind, procedural_plant};
-use landsketch::scene::terrain::Terrain;
-use landsketch::scene::vegetation::PlantInstance;
-use landsketch::scene::{Scene, Species, Sun, VegetationLayer};
+use landsketch::render::{RenderError, Renderer, Style};
+use landsketch::scene::Scene;
 use std::collections::HashSet;
 use std::path::Path;
-use std::sync::{Arc, OnceLock};
-
-fn gpu() -> Arc<Gpu> {
-    static GPU: OnceLock<Arc<Gpu>> = OnceLock::new();
-    GPU.get_or_init(|| Arc::new(Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)")))
-        .clone()
-}
+use std::sync::OnceLock;
 
 fn sample() -> &'static (Scene, Renderer) {
     static SAMPLE: OnceLock<(Scene, Renderer)> = OnceLock::new();
@@ -74,31 +63,8 @@ fn default_view_shows_terrain_and_hundreds_of_plants_of_both_layers() {
     assert!(planned >= 20, "only {planned} planned plants visible");
 }
 
-/// A flat 200 m × 200 m terrain at 100 m with one procedural broadleaf tree at its centre,
-/// lit from the zenith so that flat ground gets no hatching.
 fn tree_on_a_plain() -> Scene {
-    let n = 21;
-    let dem = Raster {
-        width: n,
-        height: n,
-        data: vec![100.0; n * n],
-        nodata: None,
-        transform: GeoTransform { origin_x: 500_000.0, origin_y: 4_400_000.0, cell_width: 10.0, cell_height: 10.0 },
-        crs: Crs::Projected { epsg: Some(32613), unit_to_metre: 1.0 },
-        palette: None,
-    };
-    let tree = procedural_plant(ProceduralKind::Broadleaf, 1);
-    Scene {
-        name: "plain".into(),
-        terrain: Terrain::new(dem, [1.0; 3]).unwrap(),
-        species: vec![Species { name: "oak".into(), model: tree }],
-        layers: vec![VegetationLayer {
-            name: "test".into(),
-            plants: vec![PlantInstance { species: 0, position: [0.0, 0.0, 100.0], rotation: 0.0, scale: 1.0 }],
-        }],
-        sun: Sun { azimuth: 0.0, elevation: 90.0 },
-        default_camera: Camera { position: [0.0, -30.0, 105.0], yaw: 0.0, pitch: 0.0, fov: 60.0 },
-    }
+    trees_on_a_plain(&[[0.0, 0.0]])
 }
 
 #[test]
@@ -120,7 +86,7 @@ fn a_tree_on_a_plain_is_outlined_on_paper() {
     assert!((h / 2..h / 2 + 12).any(|y| luminance(image.get_pixel(2, y)) < 0.5), "no horizon contour at the left edge");
 
     // With contours and hatching switched off the whole image is paper.
-    let blank = Style { contour_strength: 0.0, hatch_width: 0.0, ..Style::default() };
+    let blank = Style { contour_strength: 0.0, hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
     let image = renderer.render(&scene.default_camera, &blank, w, h).unwrap();
     assert!(image.pixels().all(|p| p.0[..3] == paper()));
 }
@@ -129,7 +95,7 @@ fn a_tree_on_a_plain_is_outlined_on_paper() {
 fn isolated_pixel_removal_only_removes_ink() {
     let scene = tree_on_a_plain();
     let renderer = Renderer::new(gpu(), &scene);
-    let hatchless = Style { hatch_width: 0.0, ..Style::default() };
+    let hatchless = Style { hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
     let with = renderer.render(&scene.default_camera, &hatchless, 256, 192).unwrap();
     let without = renderer
         .render(&scene.default_camera, &Style { isolated_pixel_removal: false, ..hatchless.clone() }, 256, 192)

@@ -1,7 +1,9 @@
-//! The `landsketch` command line: render views of a scene to image files.
+//! The `landsketch` command line: render views of a scene to image files, or serve them over
+//! HTTP and WebSocket.
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
+use landsketch::api::{Server, ServerConfig};
 use landsketch::render::{Gpu, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
@@ -20,12 +22,37 @@ struct Cli {
 enum Command {
     /// Render one view of a scene to a PNG file.
     Render(RenderArgs),
+    /// Measure temporal coherence: render a smooth camera path (pan, dolly, orbit, roll) from
+    /// the scene's default camera and print the motion-compensated flicker of the hybrid
+    /// hatching next to plain image-space hatching with the same art map and tone.
+    Coherence {
+        /// Scene file.
+        #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+        scene: PathBuf,
+        /// Frame width in pixels.
+        #[arg(long, default_value_t = 512)]
+        width: u32,
+        /// Frame height in pixels.
+        #[arg(long, default_value_t = 384)]
+        height: u32,
+        /// Frames per path segment (pan, dolly, orbit, roll).
+        #[arg(long, default_value_t = 6)]
+        steps: usize,
+        /// Style overrides applied to both variants (JSON object or file).
+        #[arg(long)]
+        style: Option<String>,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Load a scene and print what it contains (terrain, species, layers, default camera).
     Info {
         /// Scene file.
         #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
         scene: PathBuf,
     },
+    /// Serve rendered views over HTTP and WebSocket (README, "Server").
+    Serve(ServerConfig),
 }
 
 #[derive(Args)]
@@ -57,6 +84,9 @@ struct RenderArgs {
     /// Vertical field of view in degrees.
     #[arg(long)]
     fov: Option<f32>,
+    /// Rotation about the view direction in degrees (positive turns the picture counter-clockwise).
+    #[arg(long, allow_hyphen_values = true)]
+    roll: Option<f32>,
     /// Style overrides: a JSON object or the path of a JSON file (see README, "Style").
     #[arg(long)]
     style: Option<String>,
@@ -72,6 +102,10 @@ fn main() -> Result<()> {
         .init();
     match Cli::parse().command {
         Command::Render(args) => render(&args),
+        Command::Serve(config) => serve(config),
+        Command::Coherence { scene, width, height, steps, style, json } => {
+            coherence(&scene, width, height, steps, style.as_deref(), json)
+        }
         Command::Info { scene } => {
             let scene = load_scene(&scene)?;
             let ([x0, y0], [x1, y1]) = scene.terrain.bounds();
@@ -142,10 +176,36 @@ fn camera(args: &RenderArgs, scene: &Scene) -> Result<Camera> {
     camera.yaw = args.yaw.unwrap_or(camera.yaw);
     camera.pitch = args.pitch.unwrap_or(camera.pitch);
     camera.fov = args.fov.unwrap_or(camera.fov);
+    camera.roll = args.roll.unwrap_or(camera.roll);
     if !camera.is_valid() {
         bail!("camera out of range: pitch must be within -90..=90, fov within 1..=170 degrees, all values finite");
     }
     Ok(camera)
+}
+
+fn coherence(scene: &Path, width: u32, height: u32, steps: usize, style: Option<&str>, json: bool) -> Result<()> {
+    use landsketch::render::coherence::{camera_path, flicker};
+    use landsketch::render::style::HatchSpace;
+    let base = parse_style(style)?;
+    let scene = load_scene(scene)?;
+    let renderer = Renderer::new(Arc::new(Gpu::new()?), &scene);
+    let path = camera_path(&scene.default_camera, steps);
+    let mut rows = Vec::new();
+    for (name, space) in [("hybrid", HatchSpace::Hybrid), ("image-space", HatchSpace::Image)] {
+        let style = Style { hatch_space: space, ..base.clone() };
+        rows.push((name, flicker(&renderer, &style, &path, width, height)?));
+    }
+    if json {
+        let map: serde_json::Map<String, serde_json::Value> =
+            rows.iter().map(|(name, value)| (name.to_string(), serde_json::json!(value))).collect();
+        println!("{}", serde_json::json!({ "frames": path.len(), "width": width, "height": height, "flicker": map }));
+    } else {
+        println!("{} frames at {width}x{height}: mean motion-compensated luminance difference", path.len());
+        for (name, value) in rows {
+            println!("{name:<12} {value:.5}");
+        }
+    }
+    Ok(())
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
@@ -160,4 +220,41 @@ fn render(args: &RenderArgs) -> Result<()> {
     image.save(&args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
     println!("{}", args.out.display());
     Ok(())
+}
+
+fn serve(config: ServerConfig) -> Result<()> {
+    let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
+    runtime.block_on(async {
+        let server = Server::bind(config).await?;
+        server.run(shutdown_signal()).await?;
+        Ok(())
+    })
+}
+
+/// Completes on SIGINT (Ctrl-C) or SIGTERM.
+async fn shutdown_signal() {
+    let interrupt = async {
+        if let Err(error) = tokio::signal::ctrl_c().await {
+            tracing::warn!(%error, "cannot listen for Ctrl-C");
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(error) => {
+                tracing::warn!(%error, "cannot listen for SIGTERM");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = interrupt => {}
+        () = terminate => {}
+    }
 }

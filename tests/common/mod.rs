@@ -1,8 +1,58 @@
-//! Helpers shared by the image tests: reference comparison with a tolerance and image
-//! statistics.
+//! Helpers shared by the image tests: a shared GPU, small synthetic scenes, reference
+//! comparison with a tolerance and image statistics. (Each test binary uses a subset.)
+#![allow(dead_code)]
 
 use image::RgbaImage;
+use landsketch::gis::{Crs, GeoTransform, Raster};
+use landsketch::render::Gpu;
+use landsketch::scene::camera::Camera;
+use landsketch::scene::procedural::{ProceduralKind, procedural_plant};
+use landsketch::scene::terrain::Terrain;
+use landsketch::scene::vegetation::PlantInstance;
+use landsketch::scene::{Scene, Species, Sun, VegetationLayer};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+
+/// One GPU for all tests of a binary (lavapipe without a GPU).
+pub fn gpu() -> Arc<Gpu> {
+    static GPU: OnceLock<Arc<Gpu>> = OnceLock::new();
+    GPU.get_or_init(|| Arc::new(Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)")))
+        .clone()
+}
+
+/// A flat 200 m × 200 m terrain at 100 m with procedural broadleaf trees at `positions`
+/// (x, y), lit from the zenith so that flat ground gets no hatching; the camera looks north
+/// from (0, −30) at 105 m.
+pub fn trees_on_a_plain(positions: &[[f32; 2]]) -> Scene {
+    let n = 21;
+    let dem = Raster {
+        width: n,
+        height: n,
+        data: vec![100.0; n * n],
+        nodata: None,
+        transform: GeoTransform { origin_x: 500_000.0, origin_y: 4_400_000.0, cell_width: 10.0, cell_height: 10.0 },
+        crs: Crs::Projected { epsg: Some(32613), unit_to_metre: 1.0 },
+        palette: None,
+    };
+    let plants = positions
+        .iter()
+        .enumerate()
+        .map(|(i, [x, y])| PlantInstance {
+            species: 0,
+            position: [*x, *y, 100.0],
+            rotation: i as f32 * 1.3,
+            scale: 1.0,
+        })
+        .collect();
+    Scene {
+        name: "plain".into(),
+        terrain: Terrain::new(dem, [1.0; 3]).expect("terrain"),
+        species: vec![Species::new("oak", procedural_plant(ProceduralKind::Broadleaf, 1))],
+        layers: vec![VegetationLayer { name: "test".into(), plants }],
+        sun: Sun { azimuth: 0.0, elevation: 90.0 },
+        default_camera: Camera { position: [0.0, -30.0, 105.0], yaw: 0.0, pitch: 0.0, fov: 60.0, roll: 0.0 },
+    }
+}
 
 /// Per-channel difference (0..255) above which a pixel counts as an outlier.
 pub const PIXEL_TOLERANCE: u8 = 64;

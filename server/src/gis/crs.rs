@@ -1,9 +1,10 @@
 //! Coordinate reference systems, as far as the scene needs them: geographic (lon/lat degrees)
 //! or projected (planar, with a linear unit), optionally with an EPSG code.
 //!
-//! This is not a projection library: the crate never reprojects between CRSs. It only needs to
-//! know whether raster coordinates are degrees or linear units (and which unit) to build the
-//! local metric frame ([`crate::gis::LocalFrame`]).
+//! This is not a projection library: a `Crs` only says whether raster coordinates are degrees
+//! or linear units (and which unit), which is what the local metric frame
+//! ([`crate::gis::LocalFrame`]) needs. Reprojection between CRSs uses the full definitions of
+//! [`crate::gis::reproject`].
 
 use std::fmt;
 use std::str::FromStr;

@@ -438,6 +438,62 @@ pub fn read_geotiff(path: &Path) -> Result<Raster, GisError> {
     Ok(raster)
 }
 
+/// The GeoKeys of a GeoTIFF as plain values (SHORT keys and DOUBLE keys), for interpreting
+/// CRS parameters that [`Crs`] does not keep (see [`crate::gis::reproject`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct GeoKeyValues {
+    /// Keys stored as a SHORT (in the directory or GeoKeyDirectory-referenced), in file order.
+    pub shorts: Vec<(u16, u16)>,
+    /// Keys stored in GeoDoubleParams, in file order.
+    pub doubles: Vec<(u16, Vec<f64>)>,
+}
+
+impl GeoKeyValues {
+    /// The SHORT value of a key.
+    pub fn short(&self, id: u16) -> Option<u16> {
+        self.shorts.iter().find(|(k, _)| *k == id).map(|&(_, v)| v)
+    }
+
+    /// The first DOUBLE value of a key.
+    pub fn double(&self, id: u16) -> Option<f64> {
+        self.doubles(id).and_then(|d| d.first().copied())
+    }
+
+    /// All DOUBLE values of a key.
+    pub fn doubles(&self, id: u16) -> Option<&[f64]> {
+        self.doubles.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_slice())
+    }
+}
+
+/// Reads only the GeoKeys of a GeoTIFF (empty when the file has no GeoKeyDirectory).
+pub fn read_geokeys(path: &Path) -> Result<GeoKeyValues, GisError> {
+    let bytes = std::fs::read(path).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
+    if !matches!(bytes.get(..4), Some(b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+")) {
+        return Err(GisError::NotTiff { path: path.to_path_buf() });
+    }
+    let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
+    let mut decoder = Decoder::new(Cursor::new(bytes.as_slice())).map_err(tiff_err)?;
+    let Some(dir) = decoder.find_tag(Tag::GeoKeyDirectoryTag).map_err(tiff_err)? else {
+        return Ok(GeoKeyValues::default());
+    };
+    let dir = dir.into_u16_vec().map_err(tiff_err)?;
+    let params = match decoder.find_tag(Tag::GeoDoubleParamsTag).map_err(tiff_err)? {
+        Some(v) => v.into_f64_vec().map_err(tiff_err)?,
+        None => Vec::new(),
+    };
+    let keys = GeoKeys::parse(&dir, &params)
+        .map_err(|reason| GisError::BadGeoreferencing { path: path.to_path_buf(), reason })?;
+    let mut values = GeoKeyValues::default();
+    for (id, v) in keys.keys {
+        match v {
+            KeyValue::Short(s) => values.shorts.push((id, s)),
+            KeyValue::Doubles(d) => values.doubles.push((id, d)),
+            KeyValue::Other => {}
+        }
+    }
+    Ok(values)
+}
+
 /// 8-bit palette colour type for the encoder (PhotometricInterpretation RGBPalette).
 struct Palette8;
 

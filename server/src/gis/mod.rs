@@ -7,10 +7,12 @@ pub mod error;
 pub mod frame;
 pub mod geotiff;
 pub mod raster;
+pub mod reproject;
 
 pub use ascii_grid::read_ascii_grid;
 pub use crs::Crs;
 pub use error::GisError;
 pub use frame::LocalFrame;
-pub use geotiff::{read_geotiff, write_geotiff_f32, write_geotiff_u8};
+pub use geotiff::{GeoKeyValues, read_geokeys, read_geotiff, write_geotiff_f32, write_geotiff_u8};
 pub use raster::{Extent, GeoTransform, MAX_CELLS, Raster, load_raster};
+pub use reproject::{CrsDefinition, ReprojectError, Transformer};

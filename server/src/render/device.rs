@@ -42,7 +42,13 @@ impl Gpu {
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("landsketch"),
                 required_features: wgpu::Features::empty(),
-                required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+                // The G-buffer writes 44 bytes per pixel to five targets, more than the downlevel
+                // defaults (32 bytes, 4 targets); lavapipe and desktop GPUs allow 128 and 8.
+                required_limits: wgpu::Limits {
+                    max_color_attachment_bytes_per_sample: adapter.limits().max_color_attachment_bytes_per_sample,
+                    max_color_attachments: adapter.limits().max_color_attachments,
+                    ..wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits())
+                },
                 ..Default::default()
             })
             .await
@@ -50,7 +56,7 @@ impl Gpu {
         // Validation errors are caught with error scopes around each frame; anything that
         // escapes them is logged instead of aborting the process.
         device.on_uncaptured_error(std::sync::Arc::new(|error: wgpu::Error| {
-            warn!(%error, "uncaptured wgpu error");
+            warn!(error = ?error, "uncaptured wgpu error");
         }));
         Ok(Gpu { device, queue, adapter_info })
     }

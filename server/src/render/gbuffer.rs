@@ -1,16 +1,22 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
+use super::style::{HatchSpace, Style};
 use crate::scene::camera::Camera;
 use bytemuck::{Pod, Zeroable};
 
 /// Albedo (linear RGB) and coverage (alpha: 1 where geometry was drawn).
 pub const ALBEDO_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-/// World-space normal (xyz) and part kind (w: 0 terrain, 1 wood, 2 foliage).
+/// World-space normal blended towards the HLP normal (xyz) and TAM tiles per pixel (w).
 pub const NORMAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
-/// Linear view depth in metres; the background holds [`BACKGROUND_DEPTH`].
-pub const LINEAR_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
-/// Object/patch ID: layer code in the top 8 bits, object index + 1 below; 0 = background.
-pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// Linear view depth in metres (x; the background holds [`BACKGROUND_DEPTH`]) and the HLP
+/// radius in pixels (y; 0 where there is no HLP).
+pub const LINEAR_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
+/// IDs: x = object ID (layer code in the top 8 bits, object index + 1 below; 0 = background),
+/// y = patch ID (part kind << 24 | HLP index + 1), for the contour-doubling test.
+pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Uint;
+/// Hatch texture coordinates T in TAM tiles (xy) and E, the screen direction of the HLP normal
+/// (zw, y up; zero without HLP).
+pub const HATCH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Hardware depth (reverse Z) used for the depth test only.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Linear depth written where no geometry is: "infinitely" far, so the horizon gets a contour.
@@ -34,6 +40,9 @@ pub struct GBuffer {
     pub id: wgpu::TextureView,
     /// The ID target itself, for reading object IDs back.
     pub id_texture: wgpu::Texture,
+    pub hatch: wgpu::TextureView,
+    /// The linear depth target itself, for reading depth back (coherence measurement).
+    pub linear_depth_texture: wgpu::Texture,
     pub depth: wgpu::TextureView,
 }
 
@@ -64,14 +73,17 @@ impl GBuffer {
     pub fn new(device: &wgpu::Device, width: u32, height: u32) -> GBuffer {
         let view = |label, format| render_target(device, label, format, width, height).create_view(&Default::default());
         let id_texture = render_target(device, "gbuffer id", ID_FORMAT, width, height);
+        let linear_depth_texture = render_target(device, "gbuffer linear depth", LINEAR_DEPTH_FORMAT, width, height);
         GBuffer {
             width,
             height,
             albedo: view("gbuffer albedo", ALBEDO_FORMAT),
             normal: view("gbuffer normal", NORMAL_FORMAT),
-            linear_depth: view("gbuffer linear depth", LINEAR_DEPTH_FORMAT),
+            linear_depth: linear_depth_texture.create_view(&Default::default()),
+            linear_depth_texture,
             id: id_texture.create_view(&Default::default()),
             id_texture,
+            hatch: view("gbuffer hatch", HATCH_FORMAT),
             depth: view("gbuffer depth", DEPTH_FORMAT),
         }
     }
@@ -84,17 +96,25 @@ pub struct FrameUniform {
     view_proj: [[f32; 4]; 4],
     view: [[f32; 4]; 4],
     camera_pos: [f32; 4],
+    viewport: [f32; 4],
+    hlp: [f32; 4],
+    hatch: [f32; 4],
 }
 
 impl FrameUniform {
-    /// The uniforms for `camera` rendering an image of the given aspect ratio.
-    pub fn new(camera: &Camera, aspect: f32) -> FrameUniform {
+    /// The uniforms for `camera` rendering a `width` × `height` image in `style`.
+    pub fn new(camera: &Camera, style: &Style, width: u32, height: u32) -> FrameUniform {
         let view = camera.view();
         let p = camera.position;
+        let roll = -camera.roll.to_radians();
+        let image_space = f32::from(u8::from(style.hatch_space == HatchSpace::Image));
         FrameUniform {
-            view_proj: (camera.projection(aspect) * view).to_cols_array_2d(),
+            view_proj: (camera.projection(width as f32 / height as f32) * view).to_cols_array_2d(),
             view: view.to_cols_array_2d(),
             camera_pos: [p[0], p[1], p[2], 1.0],
+            viewport: [(camera.fov.to_radians() * 0.5).tan(), height as f32, width as f32, 0.0],
+            hlp: [style.normal_blend, image_space, roll.cos(), roll.sin()],
+            hatch: [style.hatch_tiles, style.hatch_surface, 0.0, style.image_hatch_scale],
         }
     }
 }
@@ -115,16 +135,24 @@ pub struct Vertex {
     pub position: [f32; 3],
     pub normal: [f32; 3],
     pub uv: [f32; 2],
+    /// HLP centre (model space) and radius; radius 0 for vertices without HLP.
+    pub hlp: [f32; 4],
+    /// HLP index within the model ([`NO_HLP`] without).
+    pub hlp_index: u32,
 }
 
-/// One instance of a mesh: placement, uniform scale, rotation about z and object ID.
+/// HLP index of vertices that belong to no HLP (terrain, wood).
+pub const NO_HLP: u32 = u32::MAX;
+
+/// One instance of a mesh: placement, uniform scale, rotation about z, object ID and the first
+/// entry of its HLPs in the reference-coordinate buffer.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct Instance {
     pub offset_scale: [f32; 4],
     pub rotation: [f32; 2],
     pub object_id: u32,
-    pub _pad: u32,
+    pub reference_base: u32,
 }
 
 /// The geometry pass pipeline and the bind group layouts meshes and frames are bound with.
@@ -176,12 +204,24 @@ impl GeometryPass {
         });
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame"),
-            entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
+            entries: &[
+                uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
         });
         let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("material"),
             entries: &[
-                uniform_entry(0, wgpu::ShaderStages::FRAGMENT),
+                uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 texture_entry(1, wgpu::TextureSampleType::Float { filterable: true }),
                 wgpu::BindGroupLayoutEntry {
                     binding: 2,
@@ -196,8 +236,9 @@ impl GeometryPass {
             bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
             immediate_size: 0,
         });
-        let vertex_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
-        let instance_attrs = wgpu::vertex_attr_array![3 => Float32x4, 4 => Float32x2, 5 => Uint32];
+        let vertex_attrs =
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x4, 4 => Uint32];
+        let instance_attrs = wgpu::vertex_attr_array![5 => Float32x4, 6 => Float32x2, 7 => Uint32, 8 => Uint32];
         let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("gbuffer"),
@@ -237,6 +278,7 @@ impl GeometryPass {
                     target(NORMAL_FORMAT),
                     target(LINEAR_DEPTH_FORMAT),
                     target(ID_FORMAT),
+                    target(HATCH_FORMAT),
                 ],
             }),
             multiview_mask: None,
@@ -277,6 +319,7 @@ impl GeometryPass {
                 clear(&gbuffer.normal, wgpu::Color::TRANSPARENT),
                 clear(&gbuffer.linear_depth, wgpu::Color { r: BACKGROUND_DEPTH, g: 0.0, b: 0.0, a: 0.0 }),
                 clear(&gbuffer.id, wgpu::Color::TRANSPARENT),
+                clear(&gbuffer.hatch, wgpu::Color::TRANSPARENT),
             ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &gbuffer.depth,

@@ -2,8 +2,12 @@
 //! terrain and instanced plants into several render targets, then post-processing passes that
 //! turn the G-buffer into a pen-and-ink image. All style parameters live in [`style::Style`].
 
+pub mod art_textures;
+pub mod artmaps;
+pub mod coherence;
 pub mod device;
 pub mod gbuffer;
+pub mod parametrization;
 pub mod post;
 mod readback;
 pub mod renderer;
@@ -34,6 +38,9 @@ pub enum RenderError {
     /// The requested image size is empty or larger than the device allows.
     #[error("image size {width}x{height} is out of range (1..={max} per side)")]
     Size { width: u32, height: u32, max: u32 },
+    /// A style names an art map the renderer does not have.
+    #[error("style parameter `{field}` = {index} names no art map (there are {count})")]
+    UnknownArtMap { field: &'static str, index: usize, count: usize },
     /// A style parameter is outside its allowed range.
     #[error("style parameter `{field}` = {value} is out of range ({range})")]
     Style { field: &'static str, value: f32, range: &'static str },

@@ -1,18 +1,60 @@
 //! Stage two: full-screen post-processing passes over the G-buffer (thesis 8.2, NPAR §9).
 //!
-//! Each pass reads the post uniform block (binding 0) and a list of input textures
-//! (bindings 1..) and writes one render target. The passes of the first pipeline are:
-//! [`contour`] (thesis eq. 5.1) and [`compose`] (eq. 5.2, tone, hatching, paper).
+//! Each pass reads the post uniform block (binding 0) and its inputs (bindings 1..) and writes
+//! one render target: [`prefilter`] (thesis eq. 5.4, optional), [`contour`] (eq. 5.1 and the
+//! tone of 6.1.3) and [`compose`] (eq. 5.2, tone blur, TAM hatching, SAM silhouettes, paper).
 
 use super::gbuffer::{texture_entry, uniform_layout_entry};
 
 const FULLSCREEN: &str = include_str!("../../../shaders/fullscreen.wgsl");
 const POST_COMMON: &str = include_str!("../../../shaders/post_common.wgsl");
 
-/// Output format of the contour pass: grey-level contour intensity.
-pub const CONTOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
+/// Output format of the depth pre-filter.
+pub const PREFILTER_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+/// Output format of the contour pass: grey-level contour intensity (r) and tone (g).
+pub const CONTOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg16Float;
 /// Output format of the final image (sRGB-encoded values written directly).
 pub const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+
+/// One input binding of a pass.
+#[derive(Debug, Clone, Copy)]
+pub enum Input {
+    /// A texture read with `textureLoad` (unfilterable float).
+    Float,
+    /// An unsigned-integer texture (IDs).
+    Uint,
+    /// A filterable 2D texture sampled with a sampler.
+    Filtered,
+    /// A filterable 2D array texture (tonal art maps).
+    FilteredArray,
+    /// A filtering sampler.
+    Sampler,
+}
+
+impl Input {
+    fn layout_entry(self, binding: u32) -> wgpu::BindGroupLayoutEntry {
+        let float = |filterable| wgpu::TextureSampleType::Float { filterable };
+        match self {
+            Input::Float => texture_entry(binding, float(false)),
+            Input::Uint => texture_entry(binding, wgpu::TextureSampleType::Uint),
+            Input::Filtered => texture_entry(binding, float(true)),
+            Input::FilteredArray => wgpu::BindGroupLayoutEntry {
+                ty: wgpu::BindingType::Texture {
+                    sample_type: float(true),
+                    view_dimension: wgpu::TextureViewDimension::D2Array,
+                    multisampled: false,
+                },
+                ..texture_entry(binding, float(true))
+            },
+            Input::Sampler => wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            },
+        }
+    }
+}
 
 /// A full-screen pass: one fragment shader over the whole image.
 pub struct FullscreenPass {
@@ -21,17 +63,15 @@ pub struct FullscreenPass {
     layout: wgpu::BindGroupLayout,
 }
 
-const UNFILTERED: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
-
 impl FullscreenPass {
     /// Builds a pass from a WGSL source (prefixed with the shared vertex stage and uniform
-    /// block), its fragment entry point, the sample types of its inputs and its output format.
+    /// block), its fragment entry point, its inputs in binding order and its output format.
     fn new(
         device: &wgpu::Device,
         label: &'static str,
         source: &str,
         entry_point: &str,
-        inputs: &[wgpu::TextureSampleType],
+        inputs: &[Input],
         output: wgpu::TextureFormat,
     ) -> FullscreenPass {
         let code = format!("{FULLSCREEN}\n{POST_COMMON}\n{source}");
@@ -40,7 +80,7 @@ impl FullscreenPass {
             source: wgpu::ShaderSource::Wgsl(code.into()),
         });
         let mut entries = vec![uniform_layout_entry(0)];
-        entries.extend(inputs.iter().enumerate().map(|(i, ty)| texture_entry(i as u32 + 1, *ty)));
+        entries.extend(inputs.iter().enumerate().map(|(i, input)| input.layout_entry(i as u32 + 1)));
         let layout =
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -76,18 +116,20 @@ impl FullscreenPass {
         FullscreenPass { label, pipeline, layout }
     }
 
-    /// Binds the uniform buffer and the input views in binding order.
+    /// Binds the uniform buffer and the inputs in binding order.
     pub fn bind_group(
         &self,
         device: &wgpu::Device,
         uniform: &wgpu::Buffer,
-        inputs: &[&wgpu::TextureView],
+        inputs: &[wgpu::BindingResource<'_>],
     ) -> wgpu::BindGroup {
         let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
-        entries.extend(inputs.iter().enumerate().map(|(i, view)| wgpu::BindGroupEntry {
-            binding: i as u32 + 1,
-            resource: wgpu::BindingResource::TextureView(view),
-        }));
+        entries.extend(
+            inputs
+                .iter()
+                .enumerate()
+                .map(|(i, resource)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: resource.clone() }),
+        );
         device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(self.label),
             layout: &self.layout,
@@ -119,28 +161,42 @@ impl FullscreenPass {
     }
 }
 
-/// The contour pass (`shaders/contour.wgsl`): linear depth → grey-level contours, eq. 5.1.
-/// Inputs: linear depth.
+/// The depth pre-filter (`shaders/prefilter.wgsl`, thesis eq. 5.4). Inputs: linear depth.
+pub fn prefilter(device: &wgpu::Device) -> FullscreenPass {
+    FullscreenPass::new(
+        device,
+        "prefilter",
+        include_str!("../../../shaders/prefilter.wgsl"),
+        "fs_prefilter",
+        &[Input::Float],
+        PREFILTER_FORMAT,
+    )
+}
+
+/// The contour and tone pass (`shaders/contour.wgsl`, thesis eq. 5.1, 6.7).
+/// Inputs: linear depth (raw or pre-filtered), albedo, normal.
 pub fn contour(device: &wgpu::Device) -> FullscreenPass {
     FullscreenPass::new(
         device,
         "contour",
         include_str!("../../../shaders/contour.wgsl"),
         "fs_contour",
-        &[UNFILTERED],
+        &[Input::Float, Input::Float, Input::Float],
         CONTOUR_FORMAT,
     )
 }
 
-/// The compose pass (`shaders/compose.wgsl`): isolated-pixel removal (eq. 5.2), tone,
-/// hatching and paper. Inputs: linear depth, contours, albedo, normal.
+/// The compose pass (`shaders/compose.wgsl`). Inputs: contour + tone, depth + HLP radius, IDs,
+/// hatch coordinates + E, normal + tiles per pixel, albedo, TAM array, SAM, TAM sampler, SAM
+/// sampler.
 pub fn compose(device: &wgpu::Device) -> FullscreenPass {
+    use Input::*;
     FullscreenPass::new(
         device,
         "compose",
         include_str!("../../../shaders/compose.wgsl"),
         "fs_compose",
-        &[UNFILTERED, UNFILTERED, UNFILTERED, UNFILTERED],
+        &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler],
         OUTPUT_FORMAT,
     )
 }

@@ -14,15 +14,9 @@ pub fn read_rgba8(
         .ok_or_else(|| RenderError::Readback("pixel buffer size mismatch".into()))
 }
 
-/// Reads an `R32Uint` texture of `width` × `height`, row-major.
-pub fn read_u32(gpu: &Gpu, texture: &wgpu::Texture, width: u32, height: u32) -> Result<Vec<u32>, RenderError> {
-    let bytes = read_texels(gpu, texture, width, height, 4)?;
-    Ok(bytes.chunks_exact(4).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect())
-}
-
 /// Copies a texture to a mappable buffer, waits for it and returns the texels without the
 /// 256-byte row padding that `copy_texture_to_buffer` requires.
-fn read_texels(
+pub fn read_texels(
     gpu: &Gpu,
     texture: &wgpu::Texture,
     width: u32,

@@ -1,7 +1,8 @@
 //! GPU-side copy of a scene: vertex/index buffers per mesh, textures, material bind groups and
 //! one instance buffer, all built once per scene and reused by every frame.
 
-use super::gbuffer::{GeometryPass, Instance, MaterialUniform, TERRAIN_LAYER_CODE, Vertex, object_id};
+use super::gbuffer::{GeometryPass, Instance, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex, object_id};
+use crate::prep::hlp::{self, Sphere};
 use crate::scene::Scene;
 use crate::scene::mesh::Mesh;
 use crate::scene::plant::{Material, PartKind};
@@ -31,6 +32,10 @@ pub struct SceneGpu {
     instances: wgpu::Buffer,
     batches: Vec<Batch>,
     triangles: u64,
+    /// World-space centre of every (instance, HLP) pair, in reference-buffer order.
+    reference_centers: Vec<glam::Vec3>,
+    /// All-zero reference coordinates for stateless frames.
+    zero_references: wgpu::Buffer,
 }
 
 /// Part kind code stored in the G-buffer normal's w (see `shaders/gbuffer.wgsl`).
@@ -90,12 +95,30 @@ struct Uploader<'a> {
 }
 
 impl Uploader<'_> {
-    fn mesh(&mut self, mesh: &Mesh, material: &Material, kind: Option<PartKind>) -> GpuMesh {
+    /// Uploads a mesh; `hlp` gives the HLP index of every vertex and the spheres they index.
+    fn mesh(
+        &mut self,
+        mesh: &Mesh,
+        hlp: Option<(&[u32], &[Sphere])>,
+        material: &Material,
+        kind: Option<PartKind>,
+    ) -> GpuMesh {
         let vertices: Vec<Vertex> = (0..mesh.positions.len())
-            .map(|i| Vertex {
-                position: mesh.positions[i],
-                normal: mesh.normals.get(i).copied().unwrap_or([0.0, 0.0, 1.0]),
-                uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
+            .map(|i| {
+                let (index, sphere) = match hlp {
+                    Some((indices, spheres)) => {
+                        let s = spheres[indices[i] as usize];
+                        (indices[i], [s.center.x, s.center.y, s.center.z, s.radius.max(1e-3)])
+                    }
+                    None => (NO_HLP, [0.0; 4]),
+                };
+                Vertex {
+                    position: mesh.positions[i],
+                    normal: mesh.normals.get(i).copied().unwrap_or([0.0, 0.0, 1.0]),
+                    uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
+                    hlp: sphere,
+                    hlp_index: index,
+                }
             })
             .collect();
         let vertices = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -150,19 +173,35 @@ impl SceneGpu {
             alpha_cutoff: None,
             double_sided: false,
         };
-        let terrain = up.mesh(&scene.terrain.mesh, &terrain_material, None);
+        let terrain = up.mesh(&scene.terrain.mesh, None, &terrain_material, None);
+        let clusters: Vec<_> = scene.species.iter().map(|s| hlp::cluster_cached(&s.model, s.hlp_radius)).collect();
         let species = scene
             .species
             .iter()
-            .map(|s| s.model.parts.iter().map(|part| up.mesh(&part.mesh, &part.material, Some(part.kind))).collect())
+            .zip(&clusters)
+            .map(|(s, hlps)| {
+                s.model
+                    .parts
+                    .iter()
+                    .zip(&hlps.triangle_hlp)
+                    .map(|(part, triangle_hlp)| match part.kind {
+                        PartKind::Foliage => {
+                            let split = hlp::split_by_hlp(&part.mesh, triangle_hlp);
+                            up.mesh(&split.mesh, Some((&split.hlp, &hlps.spheres)), &part.material, Some(part.kind))
+                        }
+                        PartKind::Wood => up.mesh(&part.mesh, None, &part.material, Some(part.kind)),
+                    })
+                    .collect()
+            })
             .collect();
 
         let mut instances = vec![Instance {
             offset_scale: [0.0, 0.0, 0.0, 1.0],
             rotation: [1.0, 0.0],
             object_id: object_id(TERRAIN_LAYER_CODE, 0),
-            _pad: 0,
+            reference_base: 0,
         }];
+        let mut reference_centers = Vec::new();
         let mut batches = Vec::new();
         for (layer_index, layer) in scene.layers.iter().enumerate() {
             let mut order: Vec<u32> = (0..layer.plants.len() as u32).collect();
@@ -172,12 +211,17 @@ impl SceneGpu {
                 for &i in chunk {
                     let plant = &layer.plants[i as usize];
                     let [x, y, z] = plant.position;
+                    let rotation = glam::Quat::from_rotation_z(plant.rotation);
+                    let offset = glam::Vec3::new(x, y, z);
                     instances.push(Instance {
                         offset_scale: [x, y, z, plant.scale],
                         rotation: [plant.rotation.cos(), plant.rotation.sin()],
                         object_id: object_id(layer_index as u32 + 2, i),
-                        _pad: 0,
+                        reference_base: reference_centers.len() as u32,
                     });
+                    reference_centers.extend(
+                        clusters[plant.species].spheres.iter().map(|s| offset + rotation * (s.center * plant.scale)),
+                    );
                 }
                 batches.push(Batch {
                     species: layer.plants[chunk[0] as usize].species,
@@ -198,7 +242,30 @@ impl SceneGpu {
                         * scene.species[b.species].model.triangle_count() as u64
                 })
                 .sum::<u64>();
-        SceneGpu { terrain, species, instances: instance_buffer, batches, triangles }
+        let zero_references = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("zero references"),
+            contents: &vec![0u8; 8 * reference_centers.len().max(1)],
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        SceneGpu {
+            terrain,
+            species,
+            instances: instance_buffer,
+            batches,
+            triangles,
+            reference_centers,
+            zero_references,
+        }
+    }
+
+    /// World-space centres of every (instance, HLP) pair, in the order of the reference buffer.
+    pub fn reference_centers(&self) -> &[glam::Vec3] {
+        &self.reference_centers
+    }
+
+    /// Reference coordinates that are all zero: what a frame without history uses.
+    pub fn zero_references(&self) -> &wgpu::Buffer {
+        &self.zero_references
     }
 
     /// Triangles submitted per frame.

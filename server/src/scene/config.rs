@@ -82,6 +82,9 @@ pub struct CameraConfig {
     pub pitch: f32,
     #[serde(default = "default_fov")]
     pub fov: f32,
+    /// Rotation about the view direction, degrees (default 0).
+    #[serde(default)]
+    pub roll: f32,
 }
 
 fn default_eye_height() -> f32 {
@@ -103,6 +106,9 @@ pub struct SpeciesConfig {
     /// Seed of the procedural generator.
     #[serde(default)]
     pub seed: u64,
+    /// Maximum radius of the model's higher level primitives in model units (thesis 4.2);
+    /// default 15 % of the model's height.
+    pub hlp_radius: Option<f32>,
 }
 
 /// `[[layers]]`: a named group of plants placed from a land-cover raster.

@@ -33,11 +33,21 @@ pub enum SceneError {
     Invalid(String),
 }
 
-/// A plant species: a name and its model.
+/// A plant species: a name, its model and the maximum radius of its HLPs.
 #[derive(Debug, Clone)]
 pub struct Species {
     pub name: String,
     pub model: PlantModel,
+    /// Maximum HLP radius in model units (thesis 4.2); by default 15 % of the model's height.
+    pub hlp_radius: f32,
+}
+
+impl Species {
+    /// A species with the default HLP radius (15 % of the model's height).
+    pub fn new(name: impl Into<String>, model: PlantModel) -> Species {
+        let hlp_radius = (0.15 * model.height()).max(0.05);
+        Species { name: name.into(), model, hlp_radius }
+    }
 }
 
 /// A named group of plants (SPEC S4), e.g. `existing` or `planned`.
@@ -100,7 +110,16 @@ impl Scene {
         let species = config
             .species
             .iter()
-            .map(|(name, s)| Ok(Species { name: name.clone(), model: load_species(name, s, base)? }))
+            .map(|(name, s)| {
+                let mut species = Species::new(name.clone(), load_species(name, s, base)?);
+                if let Some(r) = s.hlp_radius {
+                    if !(r > 0.0 && r.is_finite()) {
+                        return Err(SceneError::Invalid(format!("species '{name}': hlp_radius must be > 0")));
+                    }
+                    species.hlp_radius = r;
+                }
+                Ok(species)
+            })
             .collect::<Result<Vec<_>, SceneError>>()?;
 
         let mut layers = Vec::new();
@@ -139,8 +158,13 @@ impl Scene {
                 )));
             }
         };
-        let default_camera =
-            Camera { position: [cam.position[0], cam.position[1], z], yaw: cam.yaw, pitch: cam.pitch, fov: cam.fov };
+        let default_camera = Camera {
+            position: [cam.position[0], cam.position[1], z],
+            yaw: cam.yaw,
+            pitch: cam.pitch,
+            fov: cam.fov,
+            roll: cam.roll,
+        };
         if !default_camera.is_valid() {
             return Err(SceneError::Invalid(
                 "camera: pitch must be within -90..=90 and fov within 1..=170 degrees".into(),

@@ -1,0 +1,92 @@
+//! Configuration of `landsketch serve`: every flag has an environment variable as fallback.
+
+use clap::Parser;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Flags and environment of `landsketch serve` (see README, "Server").
+#[derive(Debug, Clone, Parser)]
+#[command(name = "landsketch serve")]
+pub struct ServerConfig {
+    /// Scene file to serve.
+    #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+    pub scene: PathBuf,
+    /// Address to listen on (port 0 picks a free port).
+    #[arg(long, env = "LANDSKETCH_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: SocketAddr,
+    /// Directory for server data (uploaded layers); created when missing.
+    #[arg(long, env = "LANDSKETCH_DATA_DIR", default_value = "landsketch-data")]
+    pub data_dir: PathBuf,
+    /// Token that write endpoints require as `Authorization: Bearer <token>`; without one,
+    /// writes are accepted from loopback clients only.
+    #[arg(long, env = "LANDSKETCH_ADMIN_TOKEN", hide_env_values = true)]
+    pub admin_token: Option<String>,
+    /// Origins allowed to call the API from a browser (CORS), comma-separated, or `*`;
+    /// CORS is off when empty.
+    #[arg(long, env = "LANDSKETCH_CORS_ORIGINS", value_delimiter = ',')]
+    pub cors_origins: Vec<String>,
+    /// Largest image width in pixels.
+    #[arg(long, env = "LANDSKETCH_MAX_WIDTH", default_value_t = 2048, value_parser = clap::value_parser!(u32).range(1..=8192))]
+    pub max_width: u32,
+    /// Largest image height in pixels.
+    #[arg(long, env = "LANDSKETCH_MAX_HEIGHT", default_value_t = 2048, value_parser = clap::value_parser!(u32).range(1..=8192))]
+    pub max_height: u32,
+    /// REST renders that may wait for the renderer; more get 503 with Retry-After.
+    #[arg(long, env = "LANDSKETCH_QUEUE_DEPTH", default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub queue_depth: u32,
+    /// Bytes of encoded images kept in the render cache (0 disables it).
+    #[arg(long, env = "LANDSKETCH_CACHE_BYTES", default_value_t = 64 << 20)]
+    pub cache_bytes: usize,
+    /// Largest request body in bytes.
+    #[arg(long, env = "LANDSKETCH_BODY_LIMIT", default_value_t = 1 << 20)]
+    pub body_limit: usize,
+    /// Largest layer upload (`POST /api/layers` body) in bytes; larger uploads get 413.
+    #[arg(long, env = "LANDSKETCH_MAX_UPLOAD", default_value_t = 64 << 20)]
+    pub max_upload: usize,
+    /// Largest WebSocket message a client may send, in bytes.
+    #[arg(long, env = "LANDSKETCH_WS_MAX_MESSAGE", default_value_t = 64 << 10)]
+    pub ws_max_message: usize,
+    /// Concurrent WebSocket sessions; more are refused with 503.
+    #[arg(long, env = "LANDSKETCH_MAX_SESSIONS", default_value_t = 64)]
+    pub max_sessions: usize,
+    /// Seconds without a client message after which a WebSocket session is closed.
+    #[arg(long, env = "LANDSKETCH_IDLE_TIMEOUT", default_value_t = 300)]
+    pub idle_timeout_s: u64,
+    /// Milliseconds of rest after the last control before a session gets its full-quality still.
+    #[arg(long, env = "LANDSKETCH_STILL_DELAY_MS", default_value_t = 150)]
+    pub still_delay_ms: u64,
+    /// Frames per second a session gets at most while it moves.
+    #[arg(long, env = "LANDSKETCH_MAX_FPS", default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=240))]
+    pub max_fps: u32,
+    /// Image size factor for frames rendered while the view moves (0.1..=1).
+    #[arg(long, env = "LANDSKETCH_INTERACTIVE_SCALE", default_value_t = 0.5, value_parser = parse_scale)]
+    pub interactive_scale: f32,
+    /// JPEG quality of frames rendered while the view moves.
+    #[arg(long, env = "LANDSKETCH_INTERACTIVE_QUALITY", default_value_t = 50, value_parser = clap::value_parser!(u8).range(1..=100))]
+    pub interactive_quality: u8,
+}
+
+impl ServerConfig {
+    /// Idle timeout of WebSocket sessions.
+    pub fn idle_timeout(&self) -> Duration {
+        Duration::from_secs(self.idle_timeout_s)
+    }
+
+    /// Rest after the last control before the still frame.
+    pub fn still_delay(&self) -> Duration {
+        Duration::from_millis(self.still_delay_ms)
+    }
+
+    /// Shortest interval between two frames of one session.
+    pub fn frame_interval(&self) -> Duration {
+        Duration::from_secs(1) / self.max_fps
+    }
+}
+
+fn parse_scale(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(scale) if (0.1..=1.0).contains(&scale) => Ok(scale),
+        _ => Err(format!("expected a number within 0.1..=1, got {text:?}")),
+    }
+}

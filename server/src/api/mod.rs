@@ -1,0 +1,359 @@
+//! The HTTP server (`landsketch serve`): rendered views over REST (`/api/render`), live frame
+//! streams over WebSocket (`/api/ws`), scene description, the data-layer store
+//! (`/api/layers`), health, Prometheus metrics and an OpenAPI document. One render worker owns the GPU renderer; REST requests and WebSocket
+//! sessions share it round-robin (see [`pool`]).
+
+pub mod auth;
+pub mod cache;
+pub mod config;
+pub mod error;
+pub mod layers;
+pub mod metrics;
+pub mod openapi;
+pub mod pool;
+pub mod routes;
+pub mod view;
+pub mod ws;
+
+pub use config::ServerConfig;
+pub use error::ApiError;
+
+use crate::fields::SceneGeo;
+use crate::render::{Gpu, RenderError};
+use crate::scene::{Scene, SceneError};
+use crate::store::{Store, StoreError, StoreLimits};
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, FromRef};
+use axum::http::{HeaderName, HeaderValue, Request};
+use axum::routing::{get, post};
+use cache::RenderCache;
+use metrics::Metrics;
+use pool::RenderPool;
+use sha2::{Digest, Sha256};
+use std::future::Future;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
+use tokio::net::TcpListener;
+use tokio::sync::watch;
+use tower_http::cors::{AllowOrigin, CorsLayer};
+use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::trace::{DefaultOnFailure, DefaultOnResponse, TraceLayer};
+use tracing::{Level, info};
+use view::Limits;
+
+/// Errors that stop the server.
+#[derive(Debug, thiserror::Error)]
+pub enum ServerError {
+    /// The listen address cannot be bound.
+    #[error("cannot listen on {addr}: {source}")]
+    Bind { addr: SocketAddr, source: std::io::Error },
+    /// The data directory cannot be created.
+    #[error("cannot create the data directory {path}: {source}")]
+    DataDir { path: PathBuf, source: std::io::Error },
+    /// The scene file cannot be read.
+    #[error("{path}: cannot read scene file: {source}")]
+    SceneFile { path: PathBuf, source: std::io::Error },
+    /// The layer store in the data directory cannot be opened.
+    #[error("cannot open the layer store: {0}")]
+    Store(#[from] StoreError),
+    /// A `--cors-origins` entry is not a valid origin.
+    #[error("invalid CORS origin {0:?}")]
+    CorsOrigin(String),
+    /// The scene cannot be loaded.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// No GPU device.
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// Serving failed.
+    #[error("server I/O error: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// What exists once the scene is loaded: the scene, the render queue and the cache.
+pub struct Ready {
+    /// The scene.
+    pub scene: Arc<Scene>,
+    /// Identifier of scene file, renderer version and adapter: part of every ETag.
+    pub scene_id: String,
+    /// Name of the graphics adapter.
+    pub adapter: String,
+    /// The render queue.
+    pub pool: RenderPool,
+    /// Encoded images of REST renders.
+    pub cache: RenderCache,
+    /// Where the scene lies, for placing uploaded layers; the error says why layers cannot be
+    /// placed (a DEM CRS without EPSG code).
+    pub geo: Result<Arc<SceneGeo>, String>,
+}
+
+struct Inner {
+    config: ServerConfig,
+    metrics: Metrics,
+    store: Arc<Store>,
+    started: Instant,
+    ready: OnceLock<Ready>,
+    shutdown: watch::Sender<bool>,
+}
+
+/// State shared by every handler; cheap to clone.
+#[derive(Clone)]
+pub struct AppState(Arc<Inner>);
+
+impl AppState {
+    fn new(config: ServerConfig, store: Arc<Store>) -> AppState {
+        AppState(Arc::new(Inner {
+            config,
+            metrics: Metrics::new(),
+            store,
+            started: Instant::now(),
+            ready: OnceLock::new(),
+            shutdown: watch::Sender::new(false),
+        }))
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ServerConfig {
+        &self.0.config
+    }
+
+    /// The metrics.
+    pub fn metrics(&self) -> &Metrics {
+        &self.0.metrics
+    }
+
+    /// The data-layer store (opened from `--data-dir`).
+    pub fn store(&self) -> &Arc<Store> {
+        &self.0.store
+    }
+
+    /// The loaded scene and renderer; `None` while loading.
+    pub fn ready(&self) -> Option<&Ready> {
+        self.0.ready.get()
+    }
+
+    /// Time since the server started.
+    pub fn uptime(&self) -> Duration {
+        self.0.started.elapsed()
+    }
+
+    /// Image-size limits of views.
+    pub fn limits(&self) -> Limits {
+        Limits { max_width: self.0.config.max_width, max_height: self.0.config.max_height }
+    }
+
+    /// A receiver that turns `true` when the server begins to shut down.
+    pub fn shutdown_receiver(&self) -> watch::Receiver<bool> {
+        self.0.shutdown.subscribe()
+    }
+
+    fn begin_shutdown(&self) {
+        self.0.shutdown.send_replace(true);
+    }
+}
+
+impl FromRef<AppState> for Metrics {
+    fn from_ref(state: &AppState) -> Metrics {
+        state.0.metrics.clone()
+    }
+}
+
+/// The router with every endpoint and middleware (request ids, tracing, metrics, body limit,
+/// CORS when configured).
+pub fn router(state: AppState) -> Result<Router, ServerError> {
+    let config = state.config();
+    let request_id = HeaderName::from_static("x-request-id");
+    let trace = TraceLayer::new_for_http()
+        .make_span_with(|request: &Request<_>| {
+            let id = request.headers().get("x-request-id").and_then(|v| v.to_str().ok()).unwrap_or_default();
+            tracing::info_span!("request", method = %request.method(), uri = %request.uri(), id = %id)
+        })
+        .on_response(DefaultOnResponse::new().level(Level::INFO))
+        .on_failure(DefaultOnFailure::new().level(Level::WARN));
+    let mut router = Router::new()
+        .route("/api/health", get(routes::health))
+        .route("/api/scene", get(routes::scene))
+        .route("/api/render", get(routes::render_get).post(routes::render_post))
+        .route("/api/cache/clear", post(routes::cache_clear))
+        .route(
+            "/api/layers",
+            get(layers::list).post(layers::upload).layer(DefaultBodyLimit::max(config.max_upload)),
+        )
+        .route("/api/layers/{id}", get(layers::get).delete(layers::delete))
+        .route("/api/layers/{id}/legend.png", get(layers::legend_png))
+        .route("/api/layers/{id}/legend.json", get(layers::legend_json))
+        .route("/api/ws", get(ws::upgrade))
+        .route("/api/openapi.json", get(openapi::openapi_json))
+        .route("/metrics", get(metrics::metrics_handler))
+        .fallback(routes::not_found)
+        .method_not_allowed_fallback(routes::method_not_allowed)
+        .layer(DefaultBodyLimit::max(config.body_limit))
+        .layer(axum::middleware::from_fn_with_state(state.metrics().clone(), metrics::track_requests))
+        .layer(trace)
+        .layer(PropagateRequestIdLayer::new(request_id.clone()))
+        .layer(SetRequestIdLayer::new(request_id, MakeRequestUuid));
+    if !config.cors_origins.is_empty() {
+        router = router.layer(cors(&config.cors_origins)?);
+    }
+    Ok(router.with_state(state))
+}
+
+fn cors(origins: &[String]) -> Result<CorsLayer, ServerError> {
+    let allow = if origins.iter().any(|o| o == "*") {
+        AllowOrigin::any()
+    } else {
+        let origins = origins
+            .iter()
+            .map(|o| HeaderValue::from_str(o.trim()).map_err(|_| ServerError::CorsOrigin(o.clone())))
+            .collect::<Result<Vec<_>, _>>()?;
+        AllowOrigin::list(origins)
+    };
+    Ok(CorsLayer::new()
+        .allow_origin(allow)
+        .allow_methods(tower_http::cors::Any)
+        .allow_headers(tower_http::cors::Any)
+        .expose_headers([axum::http::header::ETAG, HeaderName::from_static("x-render-ms")]))
+}
+
+/// Identifies what an image depends on besides the request: the scene file, the renderer
+/// version and the adapter.
+fn scene_id(scene_file: &Path, adapter: &str) -> Result<String, ServerError> {
+    let bytes =
+        std::fs::read(scene_file).map_err(|source| ServerError::SceneFile { path: scene_file.to_owned(), source })?;
+    let digest = Sha256::new()
+        .chain_update(env!("CARGO_PKG_VERSION"))
+        .chain_update([0])
+        .chain_update(adapter)
+        .chain_update([0])
+        .chain_update(&bytes)
+        .finalize();
+    Ok(view::hex(&digest[..8]))
+}
+
+/// A bound server, ready to [`run`](Server::run).
+pub struct Server {
+    listener: TcpListener,
+    state: AppState,
+}
+
+impl Server {
+    /// Creates the data directory, opens the layer store in it and binds the listen address
+    /// (port 0 picks a free port).
+    pub async fn bind(config: ServerConfig) -> Result<Server, ServerError> {
+        std::fs::create_dir_all(&config.data_dir)
+            .map_err(|source| ServerError::DataDir { path: config.data_dir.clone(), source })?;
+        let dir = config.data_dir.clone();
+        let limits = StoreLimits { max_upload_bytes: config.max_upload as u64, ..StoreLimits::default() };
+        let store = tokio::task::spawn_blocking(move || Store::open_with_limits(&dir, limits))
+            .await
+            .map_err(std::io::Error::other)??;
+        info!(dir = %config.data_dir.display(), layers = store.list().len(), "layer store opened");
+        let listener =
+            TcpListener::bind(config.addr).await.map_err(|source| ServerError::Bind { addr: config.addr, source })?;
+        Ok(Server { listener, state: AppState::new(config, Arc::new(store)) })
+    }
+
+    /// The address the server listens on.
+    pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
+        self.listener.local_addr()
+    }
+
+    /// Loads the scene (health answers 503 meanwhile), opens the GPU and serves until
+    /// `shutdown` completes; then stops accepting, closes WebSocket sessions, finishes
+    /// in-flight renders and returns.
+    pub async fn run(self, shutdown: impl Future<Output = ()> + Send + 'static) -> Result<(), ServerError> {
+        self.serve(None, shutdown).await
+    }
+
+    /// Like [`run`](Server::run) with a scene and GPU loaded already (several servers in one
+    /// process can share them).
+    pub async fn run_with(
+        self,
+        scene: Arc<Scene>,
+        gpu: Arc<Gpu>,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> Result<(), ServerError> {
+        self.serve(Some((scene, gpu)), shutdown).await
+    }
+
+    async fn serve(
+        self,
+        loaded: Option<(Arc<Scene>, Arc<Gpu>)>,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> Result<(), ServerError> {
+        let Server { listener, state } = self;
+        let app = router(state.clone())?.into_make_service_with_connect_info::<SocketAddr>();
+        let signal = {
+            let state = state.clone();
+            let mut stopping = state.shutdown_receiver();
+            async move {
+                tokio::select! {
+                    () = shutdown => info!("shutdown requested"),
+                    _ = stopping.wait_for(|s| *s) => {}
+                }
+                state.begin_shutdown();
+            }
+        };
+        info!(addr = %listener.local_addr()?, "listening");
+        let server = tokio::spawn(axum::serve(listener, app).with_graceful_shutdown(signal).into_future());
+        let loaded = load(state.clone(), loaded).await;
+        if loaded.is_err() {
+            state.begin_shutdown();
+        }
+        let served = server.await.map_err(std::io::Error::other)?;
+        // HTTP requests are done; WebSocket sessions saw the shutdown signal and close.
+        let deadline = Instant::now() + ws::CLOSE_GRACE;
+        while state.metrics().sessions.get() > 0 && Instant::now() < deadline {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let pool_state = state.clone();
+        tokio::task::spawn_blocking(move || {
+            if let Some(ready) = pool_state.ready() {
+                ready.pool.join();
+            }
+        })
+        .await
+        .map_err(std::io::Error::other)?;
+        info!("server stopped");
+        loaded?;
+        Ok(served?)
+    }
+}
+
+/// Loads the scene and GPU (unless given), starts the render worker and marks the server
+/// ready.
+async fn load(state: AppState, loaded: Option<(Arc<Scene>, Arc<Gpu>)>) -> Result<(), ServerError> {
+    let runtime = tokio::runtime::Handle::current();
+    tokio::task::spawn_blocking(move || {
+        let started = Instant::now();
+        let config = state.config();
+        let (scene, gpu) = match loaded {
+            Some(loaded) => loaded,
+            None => (Arc::new(Scene::load(&config.scene)?), Arc::new(Gpu::new()?)),
+        };
+        let adapter = gpu.adapter_info.name.clone();
+        let scene_id = scene_id(&config.scene, &adapter)?;
+        let metrics = state.metrics().clone();
+        let queue_depth = usize::try_from(config.queue_depth).unwrap_or(usize::MAX);
+        let pool = RenderPool::start(gpu, scene.clone(), queue_depth, metrics.clone(), runtime)?;
+        let cache = RenderCache::new(config.cache_bytes, metrics);
+        let geo = SceneGeo::from_terrain(&scene.terrain).map(Arc::new).map_err(|e| e.to_string());
+        if let Err(e) = &geo {
+            tracing::warn!(error = %e, "uploaded data layers cannot be placed in this scene");
+        }
+        info!(
+            scene = %scene.name,
+            plants = scene.plant_count(),
+            %adapter,
+            ms = started.elapsed().as_millis() as u64,
+            "scene ready"
+        );
+        // `load` runs once per state, so the cell is empty.
+        let _ = state.0.ready.set(Ready { scene, scene_id, adapter, pool, cache, geo });
+        Ok(())
+    })
+    .await
+    .map_err(std::io::Error::other)?
+}

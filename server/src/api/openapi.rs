@@ -1,0 +1,57 @@
+//! The OpenAPI 3 document of the server (`GET /api/openapi.json`).
+
+use super::{error, layers, metrics, routes, view, ws};
+use axum::Json;
+use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
+use utoipa::{Modify, OpenApi};
+
+/// Every endpoint, request and response of the server.
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "landsketch",
+        description = "Pen-and-ink renderings of GIS landscapes over HTTP and WebSocket. Rendering, the WebSocket and reading layers are public; write endpoints (layer upload and delete, cache clearing) need `Authorization: Bearer <token>` when the server has an admin token, else a loopback client."
+    ),
+    paths(
+        routes::health,
+        routes::scene,
+        routes::render_get,
+        routes::render_post,
+        routes::cache_clear,
+        layers::upload,
+        layers::list,
+        layers::get,
+        layers::delete,
+        layers::legend_png,
+        layers::legend_json,
+        ws::upgrade,
+        metrics::metrics_handler,
+        openapi_json,
+    ),
+    components(schemas(ws::ClientMessage, ws::ServerMessage, error::ErrorBody, view::ViewParams)),
+    modifiers(&BearerToken),
+    tags(
+        (name = "render", description = "Rendered views: REST and WebSocket"),
+        (name = "scene", description = "The scene"),
+        (name = "layers", description = "Environment data layers: upload, list, legends, delete"),
+        (name = "operations", description = "Health, metrics, cache, this document"),
+    )
+)]
+pub struct ApiDoc;
+
+/// Adds the `bearer` security scheme of the admin endpoints.
+struct BearerToken;
+
+impl Modify for BearerToken {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme("bearer", SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)));
+    }
+}
+
+/// This document.
+#[utoipa::path(get, path = "/api/openapi.json", tag = "operations",
+    responses((status = 200, description = "OpenAPI 3 document", content_type = "application/json")))]
+pub async fn openapi_json() -> Json<utoipa::openapi::OpenApi> {
+    Json(ApiDoc::openapi())
+}

@@ -1,0 +1,339 @@
+//! The render queue: one worker thread owns the [`Renderer`] and takes jobs round-robin from
+//! lanes with pending work — one lane per WebSocket session (holding at most one job, which
+//! newer controls replace until the worker starts it) and one FIFO lane for REST renders
+//! (bounded; a full lane refuses new jobs). Finished images are encoded on tokio's blocking
+//! pool so that encoding overlaps the next render.
+
+use super::metrics::{KindLabels, Metrics};
+use super::view::ViewRequest;
+use crate::render::{Gpu, RenderError, Renderer};
+use crate::scene::Scene;
+use axum::body::Bytes;
+use std::collections::{HashMap, VecDeque};
+use std::panic::AssertUnwindSafe;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::time::Instant;
+use tokio::runtime::Handle;
+use tokio::sync::oneshot;
+
+/// What a frame is rendered for (a metrics label and part of the WebSocket frame header).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameKind {
+    /// A REST render.
+    Rest,
+    /// A WebSocket frame while the view moves (reduced size and quality).
+    Interactive,
+    /// A WebSocket frame of a view at rest (full size and quality).
+    Still,
+}
+
+impl FrameKind {
+    /// The metrics label of this kind.
+    pub fn label(self) -> KindLabels {
+        let kind = match self {
+            FrameKind::Rest => "rest",
+            FrameKind::Interactive => "interactive",
+            FrameKind::Still => "still",
+        };
+        KindLabels { kind }
+    }
+}
+
+/// Errors of the render queue.
+#[derive(Debug, thiserror::Error)]
+pub enum PoolError {
+    /// The REST lane holds `depth` renders already.
+    #[error("the render queue is full ({depth} renders waiting)")]
+    Full { depth: usize, retry_after_s: u32 },
+    /// The pool has been closed for shutdown.
+    #[error("the renderer is shutting down")]
+    Closed,
+    /// The renderer failed.
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// Encoding the image failed.
+    #[error("encoding the image failed: {0}")]
+    Encode(#[from] image::ImageError),
+    /// The renderer panicked; the worker goes on with the next job.
+    #[error("the renderer panicked")]
+    Panicked,
+    /// The worker dropped the job without an answer (the job was replaced or the pool stopped).
+    #[error("the render was cancelled")]
+    Cancelled,
+}
+
+/// An encoded frame.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// PNG or JPEG bytes.
+    pub bytes: Bytes,
+    /// Milliseconds the renderer spent on the frame.
+    pub render_ms: f32,
+}
+
+/// Where the answer of a job arrives.
+pub type FrameReceiver = oneshot::Receiver<Result<Frame, PoolError>>;
+
+struct Job {
+    view: ViewRequest,
+    kind: FrameKind,
+    reply: oneshot::Sender<Result<Frame, PoolError>>,
+}
+
+impl Job {
+    fn new(view: ViewRequest, kind: FrameKind) -> (Job, FrameReceiver) {
+        let (reply, receiver) = oneshot::channel();
+        (Job { view, kind, reply }, receiver)
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Lane {
+    Rest,
+    Session(u64),
+}
+
+#[derive(Default)]
+struct Queue {
+    /// Lanes with pending work in round-robin order; a lane is listed once at most.
+    ready: VecDeque<Lane>,
+    rest: VecDeque<Job>,
+    sessions: HashMap<u64, Job>,
+    next_session: u64,
+    closed: bool,
+}
+
+impl Queue {
+    fn depth(&self) -> usize {
+        self.rest.len() + self.sessions.len()
+    }
+
+    fn pop(&mut self) -> Option<Job> {
+        while let Some(lane) = self.ready.pop_front() {
+            let job = match lane {
+                Lane::Rest => {
+                    let job = self.rest.pop_front();
+                    if !self.rest.is_empty() {
+                        self.ready.push_back(Lane::Rest);
+                    }
+                    job
+                }
+                // A session that left has no job behind its lane.
+                Lane::Session(id) => self.sessions.remove(&id),
+            };
+            if job.is_some() {
+                return job;
+            }
+        }
+        None
+    }
+}
+
+struct Shared {
+    queue: Mutex<Queue>,
+    wake: Condvar,
+    metrics: Metrics,
+    rest_capacity: usize,
+    /// Duration of the last render, for Retry-After estimates.
+    last_render_ms: AtomicU32,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Queue> {
+        self.queue.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn queued(&self, queue: &Queue) {
+        self.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
+        self.wake.notify_one();
+    }
+
+    /// Blocks until a job is available; `None` once the pool is closed and drained.
+    fn next_job(&self) -> Option<Job> {
+        let mut queue = self.lock();
+        loop {
+            if let Some(job) = queue.pop() {
+                self.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
+                return Some(job);
+            }
+            if queue.closed {
+                return None;
+            }
+            queue = self.wake.wait(queue).unwrap_or_else(PoisonError::into_inner);
+        }
+    }
+}
+
+/// The render queue and its worker thread.
+pub struct RenderPool {
+    shared: Arc<Shared>,
+    worker: Mutex<Option<std::thread::JoinHandle<()>>>,
+}
+
+impl RenderPool {
+    /// Starts the worker thread, builds the [`Renderer`] for `scene` on it and returns once it
+    /// is ready (blocking). At most `rest_capacity` REST renders wait at a time; encoding runs
+    /// on `runtime`'s blocking pool.
+    pub fn start(
+        gpu: Arc<Gpu>,
+        scene: Arc<Scene>,
+        rest_capacity: usize,
+        metrics: Metrics,
+        runtime: Handle,
+    ) -> std::io::Result<RenderPool> {
+        let shared = Arc::new(Shared {
+            queue: Mutex::default(),
+            wake: Condvar::new(),
+            metrics,
+            rest_capacity,
+            last_render_ms: AtomicU32::new(0),
+        });
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let worker_shared = shared.clone();
+        let worker = std::thread::Builder::new().name("render".into()).spawn(move || {
+            let renderer = Renderer::new(gpu, &scene);
+            drop(scene);
+            // The receiver only goes away when `start` has returned already.
+            let _ = ready_tx.send(());
+            work(&worker_shared, &renderer, &runtime);
+        })?;
+        ready_rx.recv().map_err(|_| std::io::Error::other("the render thread died while building the renderer"))?;
+        Ok(RenderPool { shared, worker: Mutex::new(Some(worker)) })
+    }
+
+    /// Queues a REST render; refused when the REST lane is full or the pool is closed.
+    pub fn submit(&self, view: ViewRequest) -> Result<FrameReceiver, PoolError> {
+        let mut queue = self.shared.lock();
+        if queue.closed {
+            return Err(PoolError::Closed);
+        }
+        if queue.rest.len() >= self.shared.rest_capacity {
+            self.shared.metrics.queue_rejected.inc();
+            let depth = queue.depth();
+            let estimate_ms = depth as u64 * u64::from(self.shared.last_render_ms.load(Ordering::Relaxed));
+            let retry_after_s = u32::try_from(estimate_ms.div_ceil(1000).max(1)).unwrap_or(u32::MAX);
+            return Err(PoolError::Full { depth, retry_after_s });
+        }
+        let (job, receiver) = Job::new(view, FrameKind::Rest);
+        if queue.rest.is_empty() {
+            queue.ready.push_back(Lane::Rest);
+        }
+        queue.rest.push_back(job);
+        self.shared.queued(&queue);
+        Ok(receiver)
+    }
+
+    /// A lane for one WebSocket session.
+    pub fn session_lane(&self) -> SessionLane {
+        let mut queue = self.shared.lock();
+        queue.next_session += 1;
+        SessionLane { id: queue.next_session, shared: self.shared.clone() }
+    }
+
+    /// Renders waiting for the worker.
+    pub fn depth(&self) -> usize {
+        self.shared.lock().depth()
+    }
+
+    /// Refuses new jobs; the worker finishes the queued ones and stops.
+    pub fn close(&self) {
+        self.shared.lock().closed = true;
+        self.shared.wake.notify_all();
+    }
+
+    /// Closes the pool and waits (blocking) until the worker has finished every queued job.
+    pub fn join(&self) {
+        self.close();
+        let worker = self.worker.lock().unwrap_or_else(PoisonError::into_inner).take();
+        if let Some(worker) = worker
+            && worker.join().is_err()
+        {
+            tracing::error!("the render thread panicked");
+        }
+    }
+}
+
+impl Drop for RenderPool {
+    fn drop(&mut self) {
+        self.close();
+    }
+}
+
+fn work(shared: &Shared, renderer: &Renderer, runtime: &Handle) {
+    while let Some(Job { view, kind, reply }) = shared.next_job() {
+        if reply.is_closed() {
+            continue; // the client left while the job waited
+        }
+        let started = Instant::now();
+        let rendered = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            renderer.render(&view.camera, &view.style, view.width, view.height)
+        }));
+        let elapsed = started.elapsed();
+        let render_ms = elapsed.as_secs_f32() * 1e3;
+        shared.last_render_ms.store(render_ms.ceil() as u32, Ordering::Relaxed);
+        shared.metrics.render_seconds.get_or_create(&kind.label()).observe(elapsed.as_secs_f64());
+        let metrics = shared.metrics.clone();
+        runtime.spawn_blocking(move || {
+            let result = match rendered {
+                Ok(Ok(image)) => {
+                    let started = Instant::now();
+                    let encoded = view.format.encode(&image, view.quality);
+                    metrics.encode_seconds.observe(started.elapsed().as_secs_f64());
+                    encoded.map(|bytes| Frame { bytes: Bytes::from(bytes), render_ms }).map_err(PoolError::from)
+                }
+                Ok(Err(error)) => Err(PoolError::Render(error)),
+                Err(_) => Err(PoolError::Panicked),
+            };
+            // The client may have left in the meantime; then nobody wants the frame.
+            let _ = reply.send(result);
+        });
+    }
+}
+
+/// One WebSocket session's lane: at most one job, replaced by newer views until the worker
+/// takes it (latest wins). Dropping the lane withdraws its job.
+pub struct SessionLane {
+    id: u64,
+    shared: Arc<Shared>,
+}
+
+impl SessionLane {
+    /// The session's number (unique within the pool).
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// Queues `view`; a job of this session that the worker has not started is replaced (its
+    /// receiver then reports [`PoolError::Cancelled`]).
+    pub fn render(&self, view: ViewRequest, kind: FrameKind) -> Result<FrameReceiver, PoolError> {
+        let mut queue = self.shared.lock();
+        if queue.closed {
+            return Err(PoolError::Closed);
+        }
+        let (job, receiver) = Job::new(view, kind);
+        if queue.sessions.insert(self.id, job).is_none() {
+            queue.ready.push_back(Lane::Session(self.id));
+        }
+        self.shared.queued(&queue);
+        Ok(receiver)
+    }
+
+    /// Replaces this session's waiting job with `view`; `None` when no job is waiting (the
+    /// worker has started it, or there was none).
+    pub fn replace(&self, view: ViewRequest, kind: FrameKind) -> Option<FrameReceiver> {
+        let mut queue = self.shared.lock();
+        let slot = queue.sessions.get_mut(&self.id)?;
+        let (job, receiver) = Job::new(view, kind);
+        *slot = job;
+        Some(receiver)
+    }
+}
+
+impl Drop for SessionLane {
+    fn drop(&mut self) {
+        let mut queue = self.shared.lock();
+        queue.sessions.remove(&self.id);
+        self.shared.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
+    }
+}

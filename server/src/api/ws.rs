@@ -1,0 +1,693 @@
+//! WebSocket sessions (`GET /api/ws`): clients send JSON control messages, the server answers
+//! with JSON status messages and binary frames (a [`HEADER_LEN`]-byte header, then the image).
+//!
+//! Latest wins: a session has at most one render queued or running; controls that arrive
+//! meanwhile replace the queued view, and when a frame is done the newest view is rendered
+//! next. While the camera or style changes, frames are smaller and JPEG at a lower quality
+//! (`--interactive-scale`, `--interactive-quality`, at most `--max-fps`); after
+//! `--still-delay-ms` of rest the session gets a full-size still in its own format.
+
+use super::error::{ApiError, ErrorDetail};
+use super::metrics::Metrics;
+use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
+use super::routes::{CameraInfo, pool_error};
+use super::view::{
+    CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_side,
+    jpeg_quality, parse_style, style_overrides,
+};
+use super::{AppState, Ready};
+use crate::render::Style;
+use crate::scene::camera::Camera;
+use axum::body::Bytes;
+use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade, close_code};
+use axum::extract::{RawQuery, State};
+use axum::response::Response;
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value};
+use std::time::Duration;
+use tokio::time::Instant;
+use utoipa::ToSchema;
+
+/// Length of the binary frame header.
+pub const HEADER_LEN: usize = 20;
+/// First two bytes of every binary frame.
+pub const MAGIC: [u8; 2] = *b"LS";
+/// Version of the frame header and message protocol.
+pub const PROTOCOL_VERSION: u8 = 1;
+/// Longest a server waits for sessions to close at shutdown.
+pub const CLOSE_GRACE: Duration = Duration::from_secs(5);
+
+/// A relative camera move: translation along the heading, then rotation.
+#[derive(Debug, Clone, Copy, Default, Deserialize, ToSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct Move {
+    /// Metres along the (new) heading, horizontally.
+    pub forward: f32,
+    /// Metres to the right of the heading.
+    pub right: f32,
+    /// Metres up (raises the eye height while walking on the terrain).
+    pub up: f32,
+    /// Degrees to turn clockwise.
+    pub yaw: f32,
+    /// Degrees to look up (clamped to −90…90).
+    pub pitch: f32,
+}
+
+/// Client → server control messages (JSON text, tagged by `type`).
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ClientMessage {
+    /// Sets camera parameters; those left out are kept. `position: [x, y]` walks on the
+    /// terrain at `eye_height`, `[x, y, z]` flies.
+    Camera(CameraParams),
+    /// Moves the camera relative to where it is.
+    Move(Move),
+    /// Changes the style: `style` fields are merged into the session's overrides (or
+    /// replace them with `replace: true`).
+    Style {
+        /// Style fields (README, "Style").
+        #[schema(value_type = Object)]
+        style: Map<String, Value>,
+        /// Replace all overrides instead of merging.
+        #[serde(default)]
+        replace: bool,
+    },
+    /// Sets the size of still frames.
+    Size {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+    },
+    /// Sets the format and quality of still frames.
+    Quality {
+        /// `png` or `jpeg`.
+        format: Option<String>,
+        /// JPEG quality 1–100.
+        quality: Option<u32>,
+    },
+    /// Asks for a `pong` with the same `id`.
+    Ping {
+        /// Any JSON value, echoed.
+        #[serde(default)]
+        #[schema(value_type = Object)]
+        id: Value,
+    },
+}
+
+/// Server → client JSON messages (tagged by `type`).
+#[derive(Debug, Serialize, ToSchema)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ServerMessage {
+    /// Sent once after connecting.
+    Hello {
+        /// Session number.
+        session: u64,
+        /// Protocol and frame-header version.
+        protocol: u8,
+        /// Scene name.
+        scene: String,
+        /// The session's camera.
+        camera: CameraInfo,
+        /// Still-frame width.
+        width: u32,
+        /// Still-frame height.
+        height: u32,
+        /// Still-frame format.
+        format: ImageFormat,
+        /// Milliseconds of rest before a still frame.
+        still_delay_ms: u64,
+        /// Seconds without a client message before the server closes the session.
+        idle_timeout_s: u64,
+    },
+    /// Describes the binary frame that follows it.
+    Frame {
+        /// Frame number (1, 2, …).
+        id: u32,
+        /// Control messages applied when the frame's view was taken.
+        seq: u32,
+        /// A full-quality still (else an interactive frame).
+        still: bool,
+        /// Image width.
+        width: u32,
+        /// Image height.
+        height: u32,
+        /// Image format.
+        format: ImageFormat,
+        /// Renderer milliseconds.
+        render_ms: f32,
+        /// The camera of the frame.
+        camera: CameraInfo,
+    },
+    /// Answer to `ping`.
+    Pong {
+        /// The ping's `id`.
+        #[schema(value_type = Object)]
+        id: Value,
+    },
+    /// A control message was rejected (the session goes on unchanged) or a render failed.
+    Error(ErrorDetail),
+}
+
+/// The 20-byte header of a binary frame (all integers little-endian).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameHeader {
+    /// Image format.
+    pub format: ImageFormat,
+    /// Frame number.
+    pub frame_id: u32,
+    /// Control messages applied when the frame's view was taken.
+    pub seq: u32,
+    /// Image width.
+    pub width: u16,
+    /// Image height.
+    pub height: u16,
+    /// Renderer milliseconds (saturating).
+    pub render_ms: u16,
+    /// Still (true) or interactive frame.
+    pub still: bool,
+    /// JPEG quality, 0 for PNG.
+    pub quality: u8,
+}
+
+impl FrameHeader {
+    /// Writes the header: magic `LS`, version, format (0 PNG, 1 JPEG), frame id u32, control
+    /// seq u32, width u16, height u16, render ms u16, kind u8 (0 interactive, 1 still),
+    /// quality u8.
+    pub fn encode(&self) -> [u8; HEADER_LEN] {
+        let mut h = [0u8; HEADER_LEN];
+        h[0..2].copy_from_slice(&MAGIC);
+        h[2] = PROTOCOL_VERSION;
+        h[3] = match self.format {
+            ImageFormat::Png => 0,
+            ImageFormat::Jpeg => 1,
+        };
+        h[4..8].copy_from_slice(&self.frame_id.to_le_bytes());
+        h[8..12].copy_from_slice(&self.seq.to_le_bytes());
+        h[12..14].copy_from_slice(&self.width.to_le_bytes());
+        h[14..16].copy_from_slice(&self.height.to_le_bytes());
+        h[16..18].copy_from_slice(&self.render_ms.to_le_bytes());
+        h[18] = u8::from(self.still);
+        h[19] = self.quality;
+        h
+    }
+
+    /// Reads a header from the start of a binary frame; `None` when it is not one.
+    pub fn decode(bytes: &[u8]) -> Option<FrameHeader> {
+        let h: &[u8; HEADER_LEN] = bytes.get(..HEADER_LEN)?.try_into().ok()?;
+        if h[0..2] != MAGIC || h[2] != PROTOCOL_VERSION {
+            return None;
+        }
+        let u16_at = |i: usize| u16::from_le_bytes([h[i], h[i + 1]]);
+        let u32_at = |i: usize| u32::from_le_bytes([h[i], h[i + 1], h[i + 2], h[i + 3]]);
+        Some(FrameHeader {
+            format: match h[3] {
+                0 => ImageFormat::Png,
+                1 => ImageFormat::Jpeg,
+                _ => return None,
+            },
+            frame_id: u32_at(4),
+            seq: u32_at(8),
+            width: u16_at(12),
+            height: u16_at(14),
+            render_ms: u16_at(16),
+            still: h[18] == 1,
+            quality: h[19],
+        })
+    }
+}
+
+/// Opens a WebSocket session. The query takes the parameters of `GET /api/render` for the
+/// initial view (e.g. `?width=800&height=600&format=jpeg`).
+#[utoipa::path(get, path = "/api/ws", tag = "render", params(RenderQuery),
+    responses(
+        (status = 101, description = "WebSocket session: JSON `ClientMessage`s in, JSON `ServerMessage`s and binary frames out (README, \"WebSocket\")"),
+        (status = 400, description = "Not a WebSocket upgrade or malformed parameter", body = super::error::ErrorBody),
+        (status = 413, description = "Initial image too large", body = super::error::ErrorBody),
+        (status = 422, description = "Initial view out of range", body = super::error::ErrorBody),
+        (status = 503, description = "Too many sessions, or the scene is loading", body = super::error::ErrorBody)))]
+pub async fn upgrade(
+    State(state): State<AppState>,
+    RawQuery(query): RawQuery,
+    ws: Result<WebSocketUpgrade, axum::extract::ws::rejection::WebSocketUpgradeRejection>,
+) -> Result<Response, ApiError> {
+    let ws = ws.map_err(|e| ApiError::BadRequest { parameter: None, message: e.body_text() })?;
+    let ready = state.ready().ok_or(ApiError::NotReady)?;
+    let params = ViewParams::from_query(query.as_deref().unwrap_or_default())?;
+    let initial = params.normalize(&ready.scene, state.limits(), Source::Query)?;
+    let walking = !matches!(params.camera.position.as_deref(), Some([_, _, _]));
+    let config = state.config();
+    let guard = SessionGuard::enter(state.metrics(), config.max_sessions).ok_or_else(|| ApiError::Busy {
+        message: format!("this server takes at most {} WebSocket sessions", config.max_sessions),
+        retry_after: 5,
+    })?;
+    let ws = ws.max_message_size(config.ws_max_message).max_frame_size(config.ws_max_message);
+    Ok(ws.on_upgrade(move |socket| async move {
+        let Some(ready) = state.ready() else { return };
+        let session = Session::new(&state, ready, initial, walking);
+        tracing::info!(session = session.id, "WebSocket session opened");
+        let id = session.id;
+        session.run(socket).await;
+        tracing::info!(session = id, "WebSocket session closed");
+        drop(guard);
+    }))
+}
+
+/// Counts a session in the `sessions` gauge for as long as it lives.
+struct SessionGuard {
+    metrics: Metrics,
+}
+
+impl SessionGuard {
+    fn enter(metrics: &Metrics, max_sessions: usize) -> Option<SessionGuard> {
+        let before = metrics.sessions.inc();
+        if usize::try_from(before).unwrap_or(usize::MAX) >= max_sessions {
+            metrics.sessions.dec();
+            return None;
+        }
+        metrics.sessions_opened.inc();
+        Some(SessionGuard { metrics: metrics.clone() })
+    }
+}
+
+impl Drop for SessionGuard {
+    fn drop(&mut self) {
+        self.metrics.sessions.dec();
+    }
+}
+
+/// What the session shows: the state that control messages change.
+struct View {
+    camera: Camera,
+    /// Eye height above the terrain while walking; `None` while flying.
+    eye_height: Option<f32>,
+    style_overrides: Map<String, Value>,
+    style: Style,
+    width: u32,
+    height: u32,
+    format: ImageFormat,
+    quality: u8,
+}
+
+struct InFlight {
+    view: ViewRequest,
+    kind: FrameKind,
+    seq: u32,
+    receiver: FrameReceiver,
+}
+
+enum Event {
+    Message(Option<Result<Message, axum::Error>>),
+    Frame(Result<Frame, PoolError>),
+    Wake,
+    Idle,
+    Shutdown,
+}
+
+struct Session<'a> {
+    id: u64,
+    state: &'a AppState,
+    ready: &'a Ready,
+    lane: SessionLane,
+    view: View,
+    /// Control messages applied so far.
+    seq: u32,
+    frame_id: u32,
+    last_control: Option<Instant>,
+    last_submit: Option<Instant>,
+    last_message: Instant,
+    delivered: Option<ViewRequest>,
+    in_flight: Option<InFlight>,
+    wake_at: Option<Instant>,
+}
+
+impl<'a> Session<'a> {
+    fn new(state: &'a AppState, ready: &'a Ready, initial: ViewRequest, walking: bool) -> Session<'a> {
+        let lane = ready.pool.session_lane();
+        let camera = initial.camera;
+        let ground = |c: &Camera| ready.scene.terrain.height_at(f64::from(c.position[0]), f64::from(c.position[1]));
+        let eye_height = if walking { ground(&camera).map(|g| camera.position[2] - g as f32) } else { None };
+        Session {
+            id: lane.id(),
+            state,
+            ready,
+            lane,
+            view: View {
+                camera,
+                eye_height,
+                style_overrides: style_overrides(&initial.style),
+                style: initial.style,
+                width: initial.width,
+                height: initial.height,
+                format: initial.format,
+                quality: initial.quality.unwrap_or(DEFAULT_JPEG_QUALITY),
+            },
+            seq: 0,
+            frame_id: 0,
+            last_control: None,
+            last_submit: None,
+            last_message: Instant::now(),
+            delivered: None,
+            in_flight: None,
+            wake_at: None,
+        }
+    }
+
+    async fn run(mut self, mut socket: WebSocket) {
+        let config = self.state.config();
+        let mut shutdown = self.state.shutdown_receiver();
+        let hello = ServerMessage::Hello {
+            session: self.id,
+            protocol: PROTOCOL_VERSION,
+            scene: self.ready.scene.name.clone(),
+            camera: CameraInfo::from(&self.view.camera),
+            width: self.view.width,
+            height: self.view.height,
+            format: self.view.format,
+            still_delay_ms: config.still_delay_ms,
+            idle_timeout_s: config.idle_timeout_s,
+        };
+        if send_json(&mut socket, &hello).await.is_err() {
+            return;
+        }
+        self.schedule(Instant::now());
+        loop {
+            let idle_at = self.last_message + config.idle_timeout();
+            let wake_at = self.wake_at;
+            let event = tokio::select! {
+                message = socket.recv() => Event::Message(message),
+                frame = frame_done(&mut self.in_flight) => Event::Frame(frame),
+                () = sleep_until(wake_at) => Event::Wake,
+                () = tokio::time::sleep_until(idle_at) => Event::Idle,
+                _ = shutdown.wait_for(|stopping| *stopping) => Event::Shutdown,
+            };
+            let now = Instant::now();
+            let outgoing = match event {
+                Event::Message(Some(Ok(message))) => {
+                    self.last_message = now;
+                    match message {
+                        Message::Text(text) => self.handle_text(text.as_str(), now),
+                        Message::Binary(_) => Some(self.reject(ApiError::BadRequest {
+                            parameter: None,
+                            message: "binary messages are not accepted; send JSON text".into(),
+                        })),
+                        Message::Close(_) => return,
+                        Message::Ping(_) | Message::Pong(_) => None,
+                    }
+                }
+                Event::Message(None | Some(Err(_))) => return,
+                Event::Frame(result) => {
+                    if self.deliver(&mut socket, result).await.is_err() {
+                        return;
+                    }
+                    None
+                }
+                Event::Wake => None,
+                Event::Idle => {
+                    close(&mut socket, close_code::AWAY, "idle timeout").await;
+                    return;
+                }
+                Event::Shutdown => {
+                    close(&mut socket, close_code::AWAY, "server shutting down").await;
+                    return;
+                }
+            };
+            if let Some(message) = outgoing
+                && send_json(&mut socket, &message).await.is_err()
+            {
+                return;
+            }
+            self.schedule(now);
+        }
+    }
+
+    /// Applies one control message; returns the message to answer with, if any.
+    fn handle_text(&mut self, text: &str, now: Instant) -> Option<ServerMessage> {
+        let message = match serde_json::from_str::<ClientMessage>(text) {
+            Ok(message) => message,
+            Err(e) => {
+                return Some(self.reject(ApiError::BadRequest {
+                    parameter: None,
+                    message: format!("unreadable control message: {e}"),
+                }));
+            }
+        };
+        let interaction =
+            matches!(message, ClientMessage::Camera(_) | ClientMessage::Move(_) | ClientMessage::Style { .. });
+        let applied = match message {
+            ClientMessage::Ping { id } => return Some(ServerMessage::Pong { id }),
+            ClientMessage::Camera(params) => self.set_camera(&params),
+            ClientMessage::Move(m) => self.move_camera(&m),
+            ClientMessage::Style { style, replace } => self.set_style(style, replace),
+            ClientMessage::Size { width, height } => self.set_size(width, height),
+            ClientMessage::Quality { format, quality } => self.set_quality(format.as_deref(), quality),
+        };
+        match applied {
+            Ok(()) => {
+                self.seq += 1;
+                if interaction {
+                    self.last_control = Some(now);
+                }
+                None
+            }
+            Err(error) => Some(self.reject(error)),
+        }
+    }
+
+    fn reject(&self, error: ApiError) -> ServerMessage {
+        self.state.metrics().ws_bad_messages.inc();
+        ServerMessage::Error(error.detail())
+    }
+
+    fn set_camera(&mut self, params: &CameraParams) -> Result<(), ApiError> {
+        let resolved = params.resolve(&self.view.camera, &self.ready.scene, Source::Message)?;
+        if params.position.is_some() || params.eye_height.is_some() {
+            self.view.eye_height = resolved.eye_height;
+        }
+        self.view.camera = resolved.camera;
+        Ok(())
+    }
+
+    fn move_camera(&mut self, m: &Move) -> Result<(), ApiError> {
+        for (name, value, limit) in [
+            ("forward", m.forward, 10_000.0),
+            ("right", m.right, 10_000.0),
+            ("up", m.up, 10_000.0),
+            ("yaw", m.yaw, 3600.0),
+            ("pitch", m.pitch, 180.0),
+        ] {
+            if !(value.is_finite() && value.abs() <= limit) {
+                return Err(ApiError::invalid(name, format!("{name} {value} is outside ±{limit}")));
+            }
+        }
+        let mut camera = self.view.camera;
+        camera.yaw = (camera.yaw + m.yaw).rem_euclid(360.0);
+        camera.pitch = (camera.pitch + m.pitch).clamp(-90.0, 90.0);
+        let (sin, cos) = camera.yaw.to_radians().sin_cos();
+        let [x, y, z] = camera.position;
+        let (x, y) = (x + m.forward * sin + m.right * cos, y + m.forward * cos - m.right * sin);
+        let (z, eye_height) = match self.view.eye_height {
+            Some(eye) => {
+                let eye = (eye + m.up).max(0.1);
+                let ground = self.ready.scene.terrain.height_at(f64::from(x), f64::from(y)).ok_or_else(|| {
+                    ApiError::invalid("forward", format!("the move to {x:.1},{y:.1} leaves the terrain"))
+                })?;
+                (ground as f32 + eye, Some(eye))
+            }
+            None => (z + m.up, None),
+        };
+        camera.position = [x, y, z];
+        self.view.camera = camera;
+        self.view.eye_height = eye_height;
+        Ok(())
+    }
+
+    fn set_style(&mut self, style: Map<String, Value>, replace: bool) -> Result<(), ApiError> {
+        let mut overrides = if replace { Map::new() } else { self.view.style_overrides.clone() };
+        overrides.extend(style);
+        let overrides = Value::Object(overrides);
+        self.view.style = parse_style(Some(&overrides), "style")?;
+        if let Value::Object(map) = overrides {
+            self.view.style_overrides = map;
+        }
+        Ok(())
+    }
+
+    fn set_size(&mut self, width: u32, height: u32) -> Result<(), ApiError> {
+        let config = self.state.config();
+        let width = image_side("width", width, config.max_width)?;
+        let height = image_side("height", height, config.max_height)?;
+        (self.view.width, self.view.height) = (width, height);
+        Ok(())
+    }
+
+    fn set_quality(&mut self, format: Option<&str>, quality: Option<u32>) -> Result<(), ApiError> {
+        let format = format.map(|f| ImageFormat::parse(f, "format")).transpose()?.unwrap_or(self.view.format);
+        let quality = match quality {
+            Some(q) => jpeg_quality(Some(q), "quality")?,
+            None => self.view.quality,
+        };
+        (self.view.format, self.view.quality) = (format, quality);
+        Ok(())
+    }
+
+    /// The view to show now: interactive while controls keep coming, else the still.
+    fn target(&self, now: Instant) -> (ViewRequest, FrameKind) {
+        let config = self.state.config();
+        let v = &self.view;
+        let moving = self.last_control.is_some_and(|t| now < t + config.still_delay());
+        let (width, height, format, quality, kind) = if moving {
+            let scale = |side: u32| ((side as f32 * config.interactive_scale).round() as u32).max(1);
+            (scale(v.width), scale(v.height), ImageFormat::Jpeg, config.interactive_quality, FrameKind::Interactive)
+        } else {
+            (v.width, v.height, v.format, v.quality, FrameKind::Still)
+        };
+        let quality = (format == ImageFormat::Jpeg).then_some(quality);
+        (ViewRequest { camera: v.camera, width, height, format, quality, style: v.style.clone() }, kind)
+    }
+
+    /// Queues the view to show if it is not shown or coming already; sets the next wake-up
+    /// (the still after rest, or the next paced interactive frame).
+    fn schedule(&mut self, now: Instant) {
+        let config = self.state.config();
+        let (view, kind) = self.target(now);
+        self.wake_at = self.last_control.map(|t| t + config.still_delay()).filter(|t| *t > now);
+        if let Some(in_flight) = &mut self.in_flight {
+            if in_flight.view == view {
+                in_flight.seq = self.seq;
+            } else if let Some(receiver) = self.lane.replace(view.clone(), kind) {
+                *in_flight = InFlight { view, kind, seq: self.seq, receiver };
+            }
+            // Otherwise the render has started; the newest view follows when it is done.
+            return;
+        }
+        if self.delivered.as_ref() == Some(&view) {
+            return;
+        }
+        if kind == FrameKind::Interactive
+            && let Some(paced) = self.last_submit.map(|t| t + config.frame_interval()).filter(|t| *t > now)
+        {
+            self.wake_at = Some(self.wake_at.map_or(paced, |w| w.min(paced)));
+            return;
+        }
+        match self.lane.render(view.clone(), kind) {
+            Ok(receiver) => {
+                self.in_flight = Some(InFlight { view, kind, seq: self.seq, receiver });
+                self.last_submit = Some(now);
+            }
+            Err(error) => tracing::debug!(session = self.id, %error, "no render queued"),
+        }
+    }
+
+    /// Sends a finished frame (a `frame` message, then the binary frame) or its error.
+    async fn deliver(&mut self, socket: &mut WebSocket, result: Result<Frame, PoolError>) -> Result<(), axum::Error> {
+        let Some(done) = self.in_flight.take() else { return Ok(()) };
+        let frame = match result {
+            Ok(frame) => frame,
+            Err(PoolError::Cancelled) => return Ok(()),
+            Err(error) => {
+                // Do not retry the same view in a loop: it counts as delivered.
+                self.delivered = Some(done.view);
+                return send_json(socket, &ServerMessage::Error(pool_error(error).detail())).await;
+            }
+        };
+        self.frame_id += 1;
+        let view = &done.view;
+        let still = done.kind == FrameKind::Still;
+        let status = ServerMessage::Frame {
+            id: self.frame_id,
+            seq: done.seq,
+            still,
+            width: view.width,
+            height: view.height,
+            format: view.format,
+            render_ms: frame.render_ms,
+            camera: CameraInfo::from(&view.camera),
+        };
+        let header = FrameHeader {
+            format: view.format,
+            frame_id: self.frame_id,
+            seq: done.seq,
+            width: u16::try_from(view.width).unwrap_or(u16::MAX),
+            height: u16::try_from(view.height).unwrap_or(u16::MAX),
+            render_ms: frame.render_ms.round().clamp(0.0, f32::from(u16::MAX)) as u16,
+            still,
+            quality: view.quality.unwrap_or(0),
+        };
+        let mut binary = Vec::with_capacity(HEADER_LEN + frame.bytes.len());
+        binary.extend_from_slice(&header.encode());
+        binary.extend_from_slice(&frame.bytes);
+        send_json(socket, &status).await?;
+        socket.send(Message::Binary(Bytes::from(binary))).await?;
+        self.state.metrics().frames_sent.get_or_create(&done.kind.label()).inc();
+        self.delivered = Some(done.view);
+        Ok(())
+    }
+}
+
+async fn frame_done(in_flight: &mut Option<InFlight>) -> Result<Frame, PoolError> {
+    match in_flight {
+        Some(f) => (&mut f.receiver).await.unwrap_or(Err(PoolError::Cancelled)),
+        None => std::future::pending().await,
+    }
+}
+
+async fn sleep_until(deadline: Option<Instant>) {
+    match deadline {
+        Some(deadline) => tokio::time::sleep_until(deadline).await,
+        None => std::future::pending().await,
+    }
+}
+
+async fn send_json(socket: &mut WebSocket, message: &ServerMessage) -> Result<(), axum::Error> {
+    let text = serde_json::to_string(message).map_err(axum::Error::new)?;
+    socket.send(Message::text(text)).await
+}
+
+async fn close(socket: &mut WebSocket, code: u16, reason: &'static str) {
+    // The client may be gone already; the session ends either way.
+    let _ = socket.send(Message::Close(Some(CloseFrame { code, reason: reason.into() }))).await;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_header_round_trips_and_rejects_other_bytes() {
+        let header = FrameHeader {
+            format: ImageFormat::Jpeg,
+            frame_id: 7,
+            seq: 0x0102_0304,
+            width: 1024,
+            height: 768,
+            render_ms: 512,
+            still: true,
+            quality: 90,
+        };
+        let bytes = header.encode();
+        assert_eq!(&bytes[..4], b"LS\x01\x01");
+        assert_eq!(&bytes[8..12], &[4, 3, 2, 1]);
+        assert_eq!(FrameHeader::decode(&bytes), Some(header));
+        assert_eq!(FrameHeader::decode(&bytes[..HEADER_LEN - 1]), None);
+        assert_eq!(FrameHeader::decode(b"PNG\x0d\x0a\x1a\x0a................"), None);
+    }
+
+    #[test]
+    fn control_messages_parse_and_garbage_does_not() {
+        let moved: ClientMessage = serde_json::from_str(r#"{"type": "move", "yaw": 5}"#).expect("move");
+        assert!(matches!(moved, ClientMessage::Move(Move { yaw: 5.0, forward: 0.0, .. })));
+        let camera: ClientMessage =
+            serde_json::from_str(r#"{"type": "camera", "position": [1, 2], "pitch": -3}"#).expect("camera");
+        assert!(matches!(camera, ClientMessage::Camera(CameraParams { pitch: Some(-3.0), .. })));
+        for garbage in [
+            r#"{"type": "move", "speed": 1}"#,
+            r#"{"type": "camera", "zoom": 2}"#,
+            r#"{"type": "teleport"}"#,
+            r#"{"yaw": 1}"#,
+            "[]",
+        ] {
+            assert!(serde_json::from_str::<ClientMessage>(garbage).is_err(), "{garbage}");
+        }
+    }
+}

@@ -1,0 +1,178 @@
+//! CPU side of the view-dependent parametrizations of thesis 5.2 (silhouettes) and 6.1
+//! (hatching): the per-HLP reference texture coordinates that follow the camera (eq. 6.2), and
+//! reference implementations of the per-pixel formulas that `shaders/gbuffer.wgsl` and
+//! `shaders/compose.wgsl` evaluate (eq. 5.5, 6.3–6.6), used to test them by hand.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+/// Thesis eq. 5.5: the SAM coordinate along a silhouette, `u = c·α·r/d`, in pixels: `alpha`
+/// is the angle of E against V_O (radians), `radius` the HLP radius and `distance` its depth
+/// (metres), `focal_px` the focal length in pixels (so r/d becomes the HLP's radius in pixels).
+pub fn silhouette_u(stretch: f32, alpha: f32, radius: f32, distance: f32, focal_px: f32) -> f32 {
+    stretch * alpha * radius * focal_px / distance
+}
+
+/// The hemispherical parametrization S (thesis eq. 6.1) centred in the reference vector
+/// `center`: the angles of `dir` right of and above `center`, times m/π (n/π) tiles.
+fn hemisphere_uv(center: Vec3, dir: Vec3, tiles: f32) -> Vec2 {
+    let right = Vec3::Z.cross(center).try_normalize().unwrap_or(Vec3::X);
+    let up = center.cross(right);
+    let forward = dir.dot(center);
+    Vec2::new(dir.dot(right).atan2(forward), dir.dot(up).atan2(forward)) * (tiles / PI)
+}
+
+/// Thesis eq. 6.2: `R'_uv = R_uv + S(R') − S(R)` with S centred in the old reference vector R
+/// (unit vector from the HLP centre to the eye). Moving the eye to the right of an HLP moves
+/// its reference coordinates by the angle swept, so strokes stay on the object.
+pub fn reference_update(ref_uv: Vec2, old_dir: Vec3, new_dir: Vec3, tiles: f32) -> Vec2 {
+    ref_uv + hemisphere_uv(old_dir, new_dir, tiles) - hemisphere_uv(old_dir, old_dir, tiles)
+}
+
+/// Thesis eq. 6.3 with 6.5: the image-space offset of a pixel from the projection of its HLP
+/// centre, brought back to the HLP sphere (camera-space length at the centre's depth divided
+/// by the radius) and expressed in tiles (m/π), then rotated against the camera roll so the
+/// strokes turn with the picture (V_O, eq. 6.5; a positive roll turns the picture
+/// counter-clockwise). Pixels are framebuffer coordinates (y down); the result has v up.
+#[allow(clippy::too_many_arguments)]
+pub fn hatch_offset(
+    pixel: Vec2,
+    center_pixel: Vec2,
+    center_depth: f32,
+    radius: f32,
+    tan_half_fov: f32,
+    height_px: f32,
+    tiles: f32,
+    roll: f32,
+) -> Vec2 {
+    let metres_per_pixel = 2.0 * center_depth * tan_half_fov / height_px;
+    let d = (pixel - center_pixel) * metres_per_pixel / radius * (tiles / PI);
+    let o = Vec2::new(d.x, -d.y);
+    Vec2::from_angle(-roll).rotate(o)
+}
+
+/// Thesis eq. 6.6: `f(A) = 1 + c·[((M·A)_z − (M·B')_z)/r]²`, with B' the point of the HLP
+/// sphere nearest the eye (at depth `center_depth − radius`).
+pub fn surface_factor(depth: f32, center_depth: f32, radius: f32, c: f32) -> f32 {
+    let dz = (depth - (center_depth - radius)) / radius;
+    1.0 + c * dz * dz
+}
+
+/// Per-view state of the hybrid hatching: the reference texture coordinates of every
+/// (plant instance, HLP) pair and the reference vector they were last updated with.
+#[derive(Debug, Clone)]
+pub struct ReferenceCoords {
+    centers: Vec<Vec3>,
+    last_dir: Vec<Vec3>,
+    ref_uv: Vec<Vec2>,
+}
+
+impl ReferenceCoords {
+    /// All-zero coordinates for HLP centres at `centers` (world space); the first update only
+    /// records the viewing directions.
+    pub fn new(centers: Vec<Vec3>) -> ReferenceCoords {
+        let n = centers.len();
+        ReferenceCoords { centers, last_dir: vec![Vec3::ZERO; n], ref_uv: vec![Vec2::ZERO; n] }
+    }
+
+    /// Applies eq. 6.2 for an eye at `eye` to every reference.
+    pub fn update(&mut self, eye: Vec3, tiles: f32) {
+        for ((center, last), uv) in self.centers.iter().zip(&mut self.last_dir).zip(&mut self.ref_uv) {
+            let dir = (eye - *center).normalize_or(Vec3::Z);
+            if *last != Vec3::ZERO {
+                *uv = reference_update(*uv, *last, dir, tiles);
+            }
+            *last = dir;
+        }
+    }
+
+    /// The coordinates as the GPU reads them (`array<vec2<f32>>`).
+    pub fn as_slice(&self) -> &[Vec2] {
+        &self.ref_uv
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eq_5_5_u_by_hand() {
+        // c = 2, α = 0.5 rad, r = 1.5 m, d = 30 m, focal 665.1 px → 2·0.5·1.5·665.1/30 = 33.255 px.
+        assert!((silhouette_u(2.0, 0.5, 1.5, 30.0, 665.1) - 33.255).abs() < 1e-3);
+    }
+
+    #[test]
+    fn eq_6_2_follows_an_orbit() {
+        // HLP at the origin, eye moves from +y (looking south at it) by 10° to the east around it.
+        let old = Vec3::Y;
+        let a = 10f32.to_radians();
+        let new = Vec3::new(-a.sin(), a.cos(), 0.0);
+        // Right of the old reference vector (Z × Y = −X): the eye moved right by 10°.
+        let uv = reference_update(Vec2::new(1.0, 2.0), old, new, 2.0);
+        assert!((uv.x - (1.0 + a * 2.0 / PI)).abs() < 1e-6, "{uv}");
+        assert!((uv.y - 2.0).abs() < 1e-6);
+        // Rising by 5° changes v only.
+        let e = 5f32.to_radians();
+        let up = Vec3::new(0.0, e.cos(), e.sin());
+        let uv = reference_update(Vec2::ZERO, old, up, 3.0);
+        assert!(uv.x.abs() < 1e-6 && (uv.y - e * 3.0 / PI).abs() < 1e-6, "{uv}");
+    }
+
+    #[test]
+    fn reference_coords_accumulate_small_steps() {
+        let mut refs = ReferenceCoords::new(vec![Vec3::ZERO]);
+        for step in 0..=10 {
+            let a = (step as f32).to_radians();
+            refs.update(Vec3::new(-a.sin(), a.cos(), 0.0) * 50.0, 1.0);
+        }
+        assert!((refs.as_slice()[0].x - 10f32.to_radians() / PI).abs() < 1e-5);
+    }
+
+    #[test]
+    fn eq_6_3_offset_for_a_known_camera() {
+        // Camera with a 60° vertical field of view, 768 px high; HLP centre 20 m away, r = 2 m.
+        // A pixel 100 px right of the centre's projection lies 100·(2·20·tan 30°/768) = 3.0070 m
+        // away at that depth = 1.5035 radii → 1.5035·(2/π) tiles = 0.9572.
+        let o = hatch_offset(
+            Vec2::new(612.0, 384.0),
+            Vec2::new(512.0, 384.0),
+            20.0,
+            2.0,
+            30f32.to_radians().tan(),
+            768.0,
+            2.0,
+            0.0,
+        );
+        assert!((o.x - 0.95716).abs() < 1e-4 && o.y.abs() < 1e-6, "{o}");
+        // Pixels above the centre give positive v; a 90° roll turns u into −v.
+        let up = hatch_offset(
+            Vec2::new(512.0, 284.0),
+            Vec2::new(512.0, 384.0),
+            20.0,
+            2.0,
+            30f32.to_radians().tan(),
+            768.0,
+            2.0,
+            0.0,
+        );
+        assert!((up.y - 0.95716).abs() < 1e-4);
+        let rolled = hatch_offset(
+            Vec2::new(612.0, 384.0),
+            Vec2::new(512.0, 384.0),
+            20.0,
+            2.0,
+            30f32.to_radians().tan(),
+            768.0,
+            2.0,
+            PI / 2.0,
+        );
+        assert!(rolled.x.abs() < 1e-4 && (rolled.y + 0.95716).abs() < 1e-4, "{rolled}");
+    }
+
+    #[test]
+    fn eq_6_6_is_one_at_the_front_of_the_sphere() {
+        assert_eq!(surface_factor(18.0, 20.0, 2.0, 3.0), 1.0);
+        assert!((surface_factor(20.0, 20.0, 2.0, 3.0) - 4.0).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,752 @@
+//! Integration tests of `landsketch serve`: real servers on loopback ports rendering the sample
+//! scene at small sizes, exercised over HTTP (reqwest) and WebSocket (tokio-tungstenite).
+
+use clap::Parser;
+use futures_util::{SinkExt, StreamExt};
+use landsketch::api::view::{ImageFormat, Limits, Source, ViewParams};
+use landsketch::api::ws::{FrameHeader, HEADER_LEN};
+use landsketch::api::{Server, ServerConfig};
+use landsketch::render::{Gpu, Style};
+use landsketch::scene::Scene;
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+use std::net::SocketAddr;
+use std::path::Path;
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
+
+const SCENE: &str = "data/boulder/scene.toml";
+
+fn loaded() -> &'static (Arc<Scene>, Arc<Gpu>) {
+    static LOADED: OnceLock<(Arc<Scene>, Arc<Gpu>)> = OnceLock::new();
+    LOADED.get_or_init(|| {
+        let scene = Scene::load(Path::new(SCENE)).expect("sample scene");
+        let gpu = Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)");
+        (Arc::new(scene), Arc::new(gpu))
+    })
+}
+
+/// A server on its own thread and runtime, stopped when dropped.
+struct TestServer {
+    addr: SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<Result<(), landsketch::api::ServerError>>>,
+}
+
+impl TestServer {
+    fn start(configure: impl FnOnce(&mut ServerConfig)) -> TestServer {
+        let data_dir = std::env::temp_dir().join("landsketch-api-tests");
+        let mut config = ServerConfig::try_parse_from([
+            "serve",
+            "--scene",
+            SCENE,
+            "--addr",
+            "127.0.0.1:0",
+            "--data-dir",
+            data_dir.to_str().expect("UTF-8 temp dir"),
+        ])
+        .expect("valid flags");
+        config.admin_token = None;
+        config.cors_origins.clear();
+        configure(&mut config);
+        let (scene, gpu) = loaded().clone();
+        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+            runtime.block_on(async move {
+                let server = Server::bind(config).await?;
+                addr_tx.send(server.local_addr()?).expect("test waits for the address");
+                server
+                    .run_with(scene, gpu, async move {
+                        let _ = stopped.await;
+                    })
+                    .await
+            })
+        });
+        let addr = addr_rx.recv().expect("server bound");
+        let server = TestServer { addr, stop: Some(stop), thread: Some(thread) };
+        server.wait_ready();
+        server
+    }
+
+    /// The shared server with the default configuration.
+    fn shared() -> &'static TestServer {
+        static SHARED: OnceLock<TestServer> = OnceLock::new();
+        SHARED.get_or_init(|| TestServer::start(|_| {}))
+    }
+
+    /// A shared server with a render queue of 2 and no cache.
+    fn tiny_queue() -> &'static TestServer {
+        static TINY: OnceLock<TestServer> = OnceLock::new();
+        TINY.get_or_init(|| {
+            TestServer::start(|c| {
+                c.queue_depth = 2;
+                c.cache_bytes = 0;
+            })
+        })
+    }
+
+    /// A shared server with an admin token, one WebSocket session at most and a 1 s idle timeout.
+    fn guarded() -> &'static TestServer {
+        static GUARDED: OnceLock<TestServer> = OnceLock::new();
+        GUARDED.get_or_init(|| {
+            TestServer::start(|c| {
+                c.admin_token = Some("s3cret".into());
+                c.cors_origins = vec!["https://maps.example.org".into()];
+                c.max_sessions = 1;
+                c.idle_timeout_s = 1;
+            })
+        })
+    }
+
+    fn wait_ready(&self) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let url = self.url("/api/health");
+        loop {
+            let status = blocking_status(&url);
+            if status == Some(200) {
+                return;
+            }
+            assert!(Instant::now() < deadline, "server did not become ready");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    fn url(&self, path: &str) -> String {
+        format!("http://{}{path}", self.addr)
+    }
+
+    fn ws_url(&self, query: &str) -> String {
+        format!("ws://{}/api/ws?{query}", self.addr)
+    }
+
+    /// Stops the server and returns what `run` returned.
+    fn stop(mut self) -> Result<(), landsketch::api::ServerError> {
+        self.shutdown()
+    }
+
+    fn shutdown(&mut self) -> Result<(), landsketch::api::ServerError> {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        match self.thread.take() {
+            Some(thread) => thread.join().expect("server thread"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for TestServer {
+    fn drop(&mut self) {
+        let _ = self.shutdown();
+    }
+}
+
+/// Status of a GET with a plain blocking TCP request (for use outside a runtime).
+fn blocking_status(url: &str) -> Option<u16> {
+    use std::io::{Read, Write};
+    let rest = url.strip_prefix("http://")?;
+    let (host, path) = rest.split_at(rest.find('/')?);
+    let mut stream = std::net::TcpStream::connect(host).ok()?;
+    write!(stream, "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").ok()?;
+    let mut response = String::new();
+    stream.read_to_string(&mut response).ok()?;
+    response.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn client() -> reqwest::Client {
+    reqwest::Client::builder().timeout(Duration::from_secs(60)).build().expect("HTTP client")
+}
+
+async fn get(url: &str) -> reqwest::Response {
+    client().get(url).send().await.expect("GET")
+}
+
+async fn post(url: &str, body: impl Into<String>) -> reqwest::Response {
+    client().post(url).header("content-type", "application/json").body(body.into()).send().await.expect("POST")
+}
+
+async fn json_of(response: reqwest::Response) -> Value {
+    let bytes = response.bytes().await.expect("body");
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&bytes)))
+}
+
+/// Asserts a JSON error with `status`, `code` and (when given) `parameter`.
+async fn assert_error(response: reqwest::Response, status: u16, code: &str, parameter: Option<&str>) -> Value {
+    let url = response.url().to_string();
+    assert_eq!(response.status().as_u16(), status, "{url}");
+    let body = json_of(response).await;
+    let error = &body["error"];
+    assert_eq!(error["code"], code, "{url}: {body}");
+    assert!(error["message"].as_str().is_some_and(|m| !m.is_empty()), "{url}: {body}");
+    if let Some(parameter) = parameter {
+        assert_eq!(error["parameter"], parameter, "{url}: {body}");
+    }
+    body
+}
+
+async fn metric(server: &TestServer, name: &str) -> f64 {
+    let text = get(&server.url("/metrics")).await.text().await.expect("metrics");
+    text.lines()
+        .filter(|l| l.starts_with(name) && (l.len() == name.len() || l[name.len()..].starts_with([' ', '{'])))
+        .filter_map(|l| l.rsplit(' ').next()?.parse::<f64>().ok())
+        .sum()
+}
+
+const VIEW: &str = "x=205&y=185&yaw=268&pitch=-1.5&width=160&height=120";
+
+// ---------------------------------------------------------------------------------------------
+// REST
+
+#[tokio::test]
+async fn health_scene_metrics_and_openapi_describe_the_server() {
+    let server = TestServer::shared();
+    let response = get(&server.url("/api/health")).await;
+    assert_eq!(response.status(), StatusCode::OK);
+    assert!(response.headers().contains_key("x-request-id"));
+    let health = json_of(response).await;
+    assert_eq!(health["status"], "ok");
+    assert_eq!(health["scene"], "Boulder foothills");
+    assert!(health["adapter"].as_str().is_some_and(|a| !a.is_empty()), "{health}");
+    assert!(health["uptime_s"].as_f64().is_some_and(|u| u >= 0.0));
+
+    let scene = json_of(get(&server.url("/api/scene")).await).await;
+    assert_eq!(scene["name"], "Boulder foothills");
+    let layers = scene["layers"].as_array().expect("layers");
+    assert_eq!(
+        layers.iter().map(|l| l["name"].as_str().unwrap_or_default()).collect::<Vec<_>>(),
+        ["existing", "planned"]
+    );
+    assert!(layers.iter().all(|l| l["plants"].as_u64().is_some_and(|n| n > 0)), "{scene}");
+    assert_eq!(scene["default_camera"]["yaw"], 268.0);
+    assert!(scene["extent"]["min"][0].as_f64().unwrap_or(0.0) < scene["extent"]["max"][0].as_f64().unwrap_or(0.0));
+    assert_eq!(scene["sun"]["azimuth"], 165.0);
+    let default_style: Value =
+        serde_json::from_str(&serde_json::to_string(&Style::default()).expect("JSON")).expect("style JSON");
+    assert_eq!(scene["default_style"], default_style);
+    assert_eq!(scene["formats"], json!(["png", "jpeg"]));
+    assert_eq!(scene["max_width"], 2048);
+
+    let openapi = json_of(get(&server.url("/api/openapi.json")).await).await;
+    assert!(openapi["openapi"].as_str().is_some_and(|v| v.starts_with("3.")), "{openapi}");
+    for (path, method) in [
+        ("/api/health", "get"),
+        ("/api/scene", "get"),
+        ("/api/render", "get"),
+        ("/api/render", "post"),
+        ("/api/cache/clear", "post"),
+        ("/api/ws", "get"),
+        ("/api/openapi.json", "get"),
+        ("/metrics", "get"),
+    ] {
+        assert!(openapi["paths"][path][method].is_object(), "OpenAPI lacks {method} {path}");
+    }
+    assert!(openapi["components"]["schemas"]["ClientMessage"].is_object());
+
+    let metrics = get(&server.url("/metrics")).await;
+    assert!(metrics.headers()["content-type"].to_str().is_ok_and(|t| t.starts_with("application/openmetrics-text")));
+    let text = metrics.text().await.expect("metrics text");
+    for name in [
+        "landsketch_http_requests_total{",
+        "landsketch_render_queue_depth ",
+        "landsketch_ws_sessions ",
+        "landsketch_cache_hits_total ",
+    ] {
+        assert!(text.contains(name), "metrics lack {name}:\n{text}");
+    }
+    assert!(text.contains(r#"route="/api/scene",method="GET",status="200""#), "{text}");
+}
+
+#[tokio::test]
+async fn get_and_post_render_the_same_bytes_and_the_link_round_trips() {
+    let server = TestServer::shared();
+    let got = get(&server.url(&format!("/api/render?{VIEW}&style=%7B%22contour_threshold%22%3A0.4%7D"))).await;
+    assert_eq!(got.status(), StatusCode::OK);
+    assert_eq!(got.headers()["content-type"], "image/png");
+    let etag = got.headers()["etag"].to_str().expect("etag").to_owned();
+    let got = got.bytes().await.expect("image");
+    let image = image::load_from_memory(&got).expect("PNG");
+    assert_eq!((image.width(), image.height()), (160, 120));
+
+    let body = json!({
+        "camera": {"position": [205, 185], "yaw": 268, "pitch": -1.5},
+        "width": 160, "height": 120, "style": {"contour_threshold": 0.4}
+    });
+    let posted = post(&server.url("/api/render"), body.to_string()).await;
+    assert_eq!(posted.status(), StatusCode::OK);
+    assert_eq!(posted.headers()["etag"].to_str().ok(), Some(etag.as_str()));
+    let link = posted.headers()["content-location"].to_str().expect("link").to_owned();
+    assert_eq!(posted.bytes().await.expect("image"), got, "GET and POST differ");
+
+    // The normalized link of the POST renders the same image again.
+    let linked = get(&server.url(&link)).await;
+    assert_eq!(linked.headers()["etag"].to_str().ok(), Some(etag.as_str()), "{link}");
+    assert_eq!(linked.bytes().await.expect("image"), got);
+
+    let jpeg = get(&server.url(&format!("/api/render?{VIEW}&format=jpeg&quality=70"))).await;
+    assert_eq!(jpeg.status(), StatusCode::OK);
+    assert_eq!(jpeg.headers()["content-type"], "image/jpeg");
+    let jpeg = image::load_from_memory(&jpeg.bytes().await.expect("jpeg")).expect("JPEG");
+    assert_eq!((jpeg.width(), jpeg.height()), (160, 120));
+}
+
+#[tokio::test]
+async fn etag_gives_304_and_repeats_come_from_the_cache() {
+    let server = TestServer::shared();
+    let url = server.url("/api/render?x=150&y=200&yaw=250&width=96&height=72");
+    let first = get(&url).await;
+    assert_eq!(first.status(), StatusCode::OK);
+    let etag = first.headers()["etag"].clone();
+    let bytes = first.bytes().await.expect("image");
+
+    let hits = metric(server, "landsketch_cache_hits_total").await;
+    let second = get(&url).await;
+    assert_eq!(second.headers()["x-cache"], "hit");
+    assert_eq!(second.bytes().await.expect("image"), bytes);
+    assert!(metric(server, "landsketch_cache_hits_total").await >= hits + 1.0);
+
+    let revalidated = client().get(&url).header("if-none-match", etag.clone()).send().await.expect("GET");
+    assert_eq!(revalidated.status(), StatusCode::NOT_MODIFIED);
+    assert_eq!(revalidated.headers()["etag"], etag);
+    assert!(revalidated.bytes().await.expect("body").is_empty());
+    let other = client().get(&url).header("if-none-match", "\"something-else\"").send().await.expect("GET");
+    assert_eq!(other.status(), StatusCode::OK);
+}
+
+#[tokio::test]
+async fn bad_requests_get_json_errors_naming_the_parameter() {
+    let server = TestServer::shared();
+    let render = |query: &str| server.url(&format!("/api/render?{query}"));
+    for (query, status, code, parameter) in [
+        ("width=4096&height=100", 413, "too_large", Some("width")),
+        ("width=100&height=5000", 413, "too_large", Some("height")),
+        ("width=0", 422, "invalid_parameter", Some("width")),
+        ("width=abc", 400, "bad_request", Some("width")),
+        ("pitch=100", 422, "invalid_parameter", Some("pitch")),
+        ("fov=0", 422, "invalid_parameter", Some("fov")),
+        ("x=1", 422, "invalid_parameter", Some("y")),
+        ("x=99999&y=0", 422, "invalid_parameter", Some("x")),
+        ("format=webp", 422, "invalid_parameter", Some("format")),
+        ("format=jpeg&quality=0", 422, "invalid_parameter", Some("quality")),
+        ("style=%7B%22ambient%22%3A2%7D", 422, "invalid_parameter", Some("style.ambient")),
+        ("style=%7B%22ambient%22%3A%22dark%22%7D", 422, "invalid_parameter", Some("style.ambient")),
+        ("style=%7B%22no_such_field%22%3A1%7D", 422, "invalid_parameter", None),
+        ("style=%5B1%5D", 422, "invalid_parameter", Some("style")),
+        ("style=%7Bnot-json", 400, "bad_request", Some("style")),
+        ("colour=red", 400, "bad_request", None),
+        ("yaw=1&yaw=2", 400, "bad_request", None),
+        ("preset=winter", 404, "not_found", None),
+    ] {
+        let body = assert_error(get(&render(query)).await, status, code, parameter).await;
+        if query.starts_with("format=webp") {
+            assert!(body["error"]["message"].as_str().is_some_and(|m| m.contains("png, jpeg")), "{body}");
+        }
+        if query.contains("no_such_field") {
+            assert!(body["error"]["message"].as_str().is_some_and(|m| m.contains("no_such_field")), "{body}");
+        }
+    }
+    let url = server.url("/api/render");
+    assert_error(post(&url, "{not json").await, 400, "bad_request", None).await;
+    assert_error(post(&url, r#"{"width": "wide"}"#).await, 422, "invalid_parameter", Some("width")).await;
+    assert_error(post(&url, r#"{"camera": {"pitch": -91}}"#).await, 422, "invalid_parameter", Some("camera.pitch"))
+        .await;
+    assert_error(
+        post(&url, r#"{"camera": {"position": [1]}}"#).await,
+        422,
+        "invalid_parameter",
+        Some("camera.position"),
+    )
+    .await;
+    assert_error(post(&url, r#"{"camera": {"zoom": 2}}"#).await, 422, "invalid_parameter", None).await;
+    assert_error(post(&url, r#"{"style": {"ambient": 2}}"#).await, 422, "invalid_parameter", Some("style.ambient"))
+        .await;
+    assert_error(post(&url, r#"{"width": 3000}"#).await, 413, "too_large", Some("width")).await;
+    let huge = format!(r#"{{"style": {{"x": "{}"}}}}"#, "a".repeat(2 << 20));
+    assert_error(post(&url, huge).await, 413, "too_large", Some("body")).await;
+
+    assert_error(get(&server.url("/api/nothing-here")).await, 404, "not_found", None).await;
+    let deleted = client().delete(&url).send().await.expect("DELETE");
+    assert_error(deleted, 405, "method_not_allowed", None).await;
+    assert_error(get(&server.url("/api/ws")).await, 400, "bad_request", None).await;
+}
+
+#[tokio::test]
+async fn a_view_request_round_trips_through_query_parameters() {
+    let (scene, _) = loaded();
+    let limits = Limits { max_width: 2048, max_height: 2048 };
+    for body in [
+        json!({}),
+        json!({"camera": {"position": [205.25, 185.5]}, "width": 160, "height": 120}),
+        json!({"camera": {"position": [0, -1500, 3000], "yaw": 12.3, "pitch": -35, "fov": 45}, "format": "jpeg"}),
+        json!({"camera": {"eye_height": 12}, "format": "jpg", "quality": 55, "style": {"contour_threshold": 0.35, "ink": [0.1, 0.2, 0.3]}}),
+    ] {
+        let params: ViewParams = serde_json::from_value(body.clone()).expect("body");
+        let view = params.normalize(scene, limits, Source::Body).expect("valid view");
+        // The JSON body as query parameters is the same view ...
+        let from_query = ViewParams::from_query(&params.to_query()).expect("query");
+        assert_eq!(from_query.normalize(scene, limits, Source::Query).expect("valid"), view, "{body}");
+        // ... and so is the normalized view's own link and body.
+        let link = view.to_params().to_query();
+        let again = ViewParams::from_query(&link).expect("link").normalize(scene, limits, Source::Query);
+        assert_eq!(again.expect("valid"), view, "{link}");
+        let body = serde_json::to_value(view.to_params()).expect("serializes");
+        let again: ViewParams = serde_json::from_value(body).expect("body");
+        assert_eq!(again.normalize(scene, limits, Source::Body).expect("valid"), view);
+        assert_eq!(view.etag("scene"), again.normalize(scene, limits, Source::Body).expect("valid").etag("scene"));
+    }
+    let default = ViewParams::default().normalize(scene, limits, Source::Body).expect("default");
+    assert_eq!(default.camera, scene.default_camera);
+    assert_eq!((default.width, default.height, default.format), (1024, 768, ImageFormat::Png));
+}
+
+#[tokio::test]
+async fn a_full_queue_answers_503_with_retry_after() {
+    let server = TestServer::tiny_queue();
+    let requests = (0..8).map(|i| get_owned(server.url(&format!("/api/render?yaw={}&width=320&height=240", i * 40))));
+    let responses = futures_util::future::join_all(requests).await;
+    let mut busy = 0;
+    for response in responses {
+        match response.status().as_u16() {
+            200 => {}
+            503 => {
+                busy += 1;
+                let retry = response.headers()["retry-after"].to_str().expect("retry-after").parse::<u32>();
+                assert!(retry.is_ok_and(|s| s >= 1));
+                assert_error(response, 503, "busy", None).await;
+            }
+            other => panic!("unexpected status {other}"),
+        }
+    }
+    assert!(busy >= 1, "8 simultaneous renders with a queue of 2 should see a 503");
+    assert!(metric(server, "landsketch_render_queue_rejected_total").await >= f64::from(busy));
+}
+
+async fn get_owned(url: String) -> reqwest::Response {
+    get(&url).await
+}
+
+#[tokio::test]
+async fn a_burst_of_renders_all_succeed_or_get_503() {
+    let server = TestServer::tiny_queue();
+    let started = Instant::now();
+    let requests = (0..50).map(|i| get_owned(server.url(&format!("/api/render?yaw={}&width=64&height=48", i * 7))));
+    let responses = futures_util::future::join_all(requests).await;
+    let (mut ok, mut busy) = (0, 0);
+    for response in responses {
+        match response.status().as_u16() {
+            200 => ok += 1,
+            503 => {
+                assert!(response.headers().contains_key("retry-after"));
+                busy += 1;
+            }
+            other => panic!("unexpected status {other}"),
+        }
+    }
+    eprintln!("burst of 50: {ok} rendered, {busy} refused in {:.1} s", started.elapsed().as_secs_f64());
+    assert_eq!(ok + busy, 50);
+    // The server recovers: honouring Retry-After, a render gets through.
+    let url = server.url("/api/render?yaw=3&width=64&height=48");
+    for attempt in 0.. {
+        let response = get(&url).await;
+        if response.status() == StatusCode::OK {
+            break;
+        }
+        assert!(attempt < 20, "no render got through after the burst");
+        let retry = response.headers()["retry-after"].to_str().ok().and_then(|s| s.parse::<u64>().ok()).unwrap_or(1);
+        tokio::time::sleep(Duration::from_secs(retry.min(5))).await;
+    }
+}
+
+#[tokio::test]
+async fn admin_endpoints_need_the_token_or_loopback() {
+    let open = TestServer::shared();
+    let cleared = post(&open.url("/api/cache/clear"), "").await;
+    assert_eq!(cleared.status(), StatusCode::OK, "no token: loopback clients may write");
+    let cleared = json_of(cleared).await;
+    assert!(cleared["entries"].is_u64() && cleared["bytes"].is_u64(), "{cleared}");
+
+    let guarded = TestServer::guarded();
+    let url = guarded.url("/api/cache/clear");
+    let missing = post(&url, "").await;
+    assert_eq!(missing.headers()["www-authenticate"], "Bearer");
+    assert_error(missing, 401, "unauthorized", None).await;
+    let wrong = client().post(&url).bearer_auth("guess").send().await.expect("POST");
+    assert_error(wrong, 401, "unauthorized", None).await;
+    let right = client().post(&url).bearer_auth("s3cret").send().await.expect("POST");
+    assert_eq!(right.status(), StatusCode::OK);
+    // Reading stays public.
+    assert_eq!(get(&guarded.url("/api/scene")).await.status(), StatusCode::OK);
+}
+
+#[tokio::test]
+async fn cors_is_off_unless_origins_are_configured() {
+    let origin = "https://maps.example.org";
+    let request = |server: &TestServer| client().get(server.url("/api/scene")).header("origin", origin).send();
+    let open = request(TestServer::shared()).await.expect("GET");
+    assert!(!open.headers().contains_key("access-control-allow-origin"));
+    let allowed = request(TestServer::guarded()).await.expect("GET");
+    assert_eq!(allowed.headers()["access-control-allow-origin"], origin);
+    let preflight = client()
+        .request(reqwest::Method::OPTIONS, TestServer::guarded().url("/api/render"))
+        .header("origin", origin)
+        .header("access-control-request-method", "POST")
+        .send()
+        .await
+        .expect("OPTIONS");
+    assert!(preflight.status().is_success());
+    assert_eq!(preflight.headers()["access-control-allow-origin"], origin);
+}
+
+#[tokio::test]
+async fn shutdown_finishes_in_flight_renders() {
+    let server = TestServer::start(|_| {});
+    let url = server.url("/api/render?width=640&height=480");
+    let request = tokio::spawn(get_owned(url));
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let stopped = tokio::task::spawn_blocking(move || server.stop());
+    let response = request.await.expect("request task");
+    assert_eq!(response.status(), StatusCode::OK);
+    assert!(!response.bytes().await.expect("image").is_empty());
+    stopped.await.expect("stop task").expect("clean shutdown");
+}
+
+#[tokio::test]
+async fn a_missing_scene_stops_the_server_with_an_error() {
+    let config = ServerConfig::try_parse_from([
+        "serve",
+        "--scene",
+        "data/no-such-scene.toml",
+        "--addr",
+        "127.0.0.1:0",
+        "--data-dir",
+        std::env::temp_dir().join("landsketch-api-tests").to_str().expect("UTF-8"),
+    ])
+    .expect("flags");
+    let server = Server::bind(config).await.expect("bind");
+    let error = server.run(std::future::pending()).await.expect_err("no scene");
+    assert!(error.to_string().contains("no-such-scene.toml"), "{error}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// WebSocket
+
+type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
+
+enum Incoming {
+    Json(Value),
+    Frame(FrameHeader, Vec<u8>),
+    Closed(Option<String>),
+}
+
+async fn connect(server: &TestServer, query: &str) -> Socket {
+    let (socket, _) = tokio_tungstenite::connect_async(server.ws_url(query)).await.expect("WebSocket connect");
+    socket
+}
+
+async fn receive(socket: &mut Socket) -> Incoming {
+    loop {
+        let message = tokio::time::timeout(Duration::from_secs(30), socket.next()).await.expect("a message in time");
+        match message {
+            Some(Ok(Message::Text(text))) => {
+                return Incoming::Json(serde_json::from_str(text.as_str()).expect("JSON message"));
+            }
+            Some(Ok(Message::Binary(bytes))) => {
+                let header = FrameHeader::decode(&bytes).expect("frame header");
+                return Incoming::Frame(header, bytes[HEADER_LEN..].to_vec());
+            }
+            Some(Ok(Message::Close(frame))) => return Incoming::Closed(frame.map(|f| f.reason.to_string())),
+            Some(Ok(_)) => {}
+            Some(Err(_)) | None => return Incoming::Closed(None),
+        }
+    }
+}
+
+/// The next frame: its `frame` message, header and image bytes (other JSON messages are
+/// returned in the first vector).
+async fn next_frame(socket: &mut Socket) -> (Vec<Value>, Value, FrameHeader, Vec<u8>) {
+    let mut others = Vec::new();
+    loop {
+        match receive(socket).await {
+            Incoming::Json(v) if v["type"] == "frame" => match receive(socket).await {
+                Incoming::Frame(header, bytes) => return (others, v, header, bytes),
+                _ => panic!("a frame message is followed by a binary frame"),
+            },
+            Incoming::Json(v) => others.push(v),
+            Incoming::Frame(..) => panic!("binary frame without a frame message"),
+            Incoming::Closed(reason) => panic!("closed: {reason:?}"),
+        }
+    }
+}
+
+async fn send(socket: &mut Socket, message: Value) {
+    socket.send(Message::text(message.to_string())).await.expect("send");
+}
+
+#[tokio::test]
+async fn the_first_frame_arrives_with_a_correct_header() {
+    let server = TestServer::shared();
+    let mut socket = connect(server, "width=160&height=120").await;
+    let Incoming::Json(hello) = receive(&mut socket).await else { panic!("hello first") };
+    assert_eq!(hello["type"], "hello");
+    assert_eq!(hello["protocol"], 1);
+    assert_eq!(hello["scene"], "Boulder foothills");
+    let (_, status, header, bytes) = next_frame(&mut socket).await;
+    assert_eq!(header.frame_id, 1);
+    assert_eq!(header.seq, 0);
+    assert!(header.still);
+    assert_eq!((header.width, header.height, header.format), (160, 120, ImageFormat::Png));
+    assert_eq!(status["id"], 1);
+    assert_eq!(status["camera"], hello["camera"]);
+    let image = image::load_from_memory(&bytes).expect("PNG frame");
+    assert_eq!((image.width(), image.height()), (160, 120));
+}
+
+#[tokio::test]
+async fn latest_control_wins_and_a_still_follows_at_rest() {
+    let server = TestServer::shared();
+    let mut socket = connect(server, "width=160&height=120&format=jpeg&quality=90").await;
+    let (_, first, _, _) = next_frame(&mut socket).await;
+    let yaw0 = first["camera"]["yaw"].as_f64().expect("yaw");
+    for _ in 0..10 {
+        send(&mut socket, json!({"type": "move", "yaw": 5, "forward": 1})).await;
+    }
+    let mut frames = Vec::new();
+    let last = loop {
+        let (errors, status, header, bytes) = next_frame(&mut socket).await;
+        assert!(errors.is_empty(), "{errors:?}");
+        assert_eq!(status["seq"].as_u64(), Some(u64::from(header.seq)));
+        if header.still {
+            break (status, header, bytes);
+        }
+        assert_eq!((header.width, header.height, header.format, header.quality), (80, 60, ImageFormat::Jpeg, 50));
+        frames.push(header);
+    };
+    let (status, header, bytes) = last;
+    assert!(frames.len() < 6, "latest wins: 10 moves gave {} interactive frames", frames.len());
+    assert!(frames.windows(2).all(|w| w[0].seq < w[1].seq));
+    assert_eq!(header.seq, 10, "the still reflects the last control");
+    assert_eq!((header.width, header.height, header.format, header.quality), (160, 120, ImageFormat::Jpeg, 90));
+    let yaw = status["camera"]["yaw"].as_f64().expect("yaw");
+    assert!(
+        ((yaw - yaw0 - 50.0).rem_euclid(360.0)).min((yaw0 + 50.0 - yaw).rem_euclid(360.0)) < 1e-3,
+        "{yaw0} → {yaw}"
+    );
+    let image = image::load_from_memory(&bytes).expect("JPEG still");
+    assert_eq!((image.width(), image.height()), (160, 120));
+}
+
+#[tokio::test]
+async fn garbage_messages_get_errors_and_the_session_goes_on() {
+    let server = TestServer::shared();
+    let mut socket = connect(server, "width=96&height=72").await;
+    next_frame(&mut socket).await;
+    let bad = metric(server, "landsketch_ws_bad_messages_total").await;
+    for garbage in [
+        Message::text("not json at all"),
+        Message::text(r#"{"type": "fly", "speed": 3}"#),
+        Message::text(r#"{"type": "camera", "pitch": 200}"#),
+        Message::text(r#"{"type": "size", "width": 100000, "height": 10}"#),
+        Message::text(r#"{"type": "style", "style": {"ambient": -1}}"#),
+        Message::binary(vec![0u8, 1, 2, 3]),
+    ] {
+        socket.send(garbage).await.expect("send");
+        let Incoming::Json(error) = receive(&mut socket).await else { panic!("an error message") };
+        assert_eq!(error["type"], "error", "{error}");
+        assert!(error["message"].as_str().is_some_and(|m| !m.is_empty()), "{error}");
+    }
+    assert!(metric(server, "landsketch_ws_bad_messages_total").await >= bad + 6.0);
+    send(&mut socket, json!({"type": "ping", "id": 7})).await;
+    let Incoming::Json(pong) = receive(&mut socket).await else { panic!("pong") };
+    assert_eq!(pong, json!({"type": "pong", "id": 7}));
+    send(&mut socket, json!({"type": "camera", "pitch": -10})).await;
+    loop {
+        let (_, status, header, _) = next_frame(&mut socket).await;
+        assert_eq!(header.seq, 1, "only the valid control counts");
+        if header.still {
+            assert_eq!(status["camera"]["pitch"], -10.0);
+            break;
+        }
+    }
+}
+
+/// Eight sessions move their cameras until each has two frames: none starves, and round-robin
+/// keeps them close to each other.
+#[tokio::test]
+async fn concurrent_sessions_all_get_frames() {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    const SESSIONS: usize = 8;
+    const FRAMES: u32 = 2;
+    let server = TestServer::shared();
+    let counts: Arc<Vec<AtomicU32>> = Arc::new((0..SESSIONS).map(|_| AtomicU32::new(0)).collect());
+    let all_done = {
+        let counts = counts.clone();
+        move || counts.iter().all(|c| c.load(Ordering::SeqCst) >= FRAMES)
+    };
+    let started = Instant::now();
+    let deadline = started + Duration::from_secs(60);
+    let sessions = (0..SESSIONS).map(|i| {
+        let url = server.ws_url("width=64&height=48");
+        let (counts, all_done) = (counts.clone(), all_done.clone());
+        tokio::spawn(async move {
+            let (mut socket, _) = tokio_tungstenite::connect_async(url).await.expect("connect");
+            let mut interval = tokio::time::interval(Duration::from_millis(60));
+            while !all_done() && Instant::now() < deadline {
+                tokio::select! {
+                    _ = interval.tick() => {
+                        let message = json!({"type": "move", "yaw": 3 + i});
+                        socket.send(Message::text(message.to_string())).await.expect("send");
+                    }
+                    message = socket.next() => match message {
+                        Some(Ok(Message::Binary(_))) => {
+                            counts[i].fetch_add(1, Ordering::SeqCst);
+                        }
+                        Some(Ok(_)) => {}
+                        _ => panic!("session {i} closed"),
+                    }
+                }
+            }
+            socket.close(None).await.expect("close");
+        })
+    });
+    for session in futures_util::future::join_all(sessions).await {
+        session.expect("session task");
+    }
+    let secs = started.elapsed().as_secs_f64();
+    let frames: Vec<u32> = counts.iter().map(|c| c.load(Ordering::SeqCst)).collect();
+    for (i, n) in frames.iter().enumerate() {
+        eprintln!("session {i}: {n} frames, {:.2} fps", f64::from(*n) / secs);
+    }
+    assert!(frames.iter().all(|n| *n >= FRAMES), "a session starved within 60 s: {frames:?}");
+    let spread = frames.iter().max().unwrap_or(&0) - frames.iter().min().unwrap_or(&0);
+    assert!(spread <= 3, "sessions were served unevenly: {frames:?}");
+}
+
+#[tokio::test]
+async fn idle_sessions_are_closed_and_sessions_are_limited() {
+    let server = TestServer::guarded();
+    let mut socket = connect(server, "width=32&height=24").await;
+    match tokio_tungstenite::connect_async(server.ws_url("")).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => assert_eq!(response.status().as_u16(), 503),
+        other => panic!("a second session should be refused, got {:?}", other.map(|_| ())),
+    }
+    let started = Instant::now();
+    loop {
+        if let Incoming::Closed(reason) = receive(&mut socket).await {
+            assert_eq!(reason.as_deref(), Some("idle timeout"));
+            break;
+        }
+    }
+    assert!(started.elapsed() < Duration::from_secs(5));
+    // The closed session was cleaned up: the single session slot is free again.
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while metric(server, "landsketch_ws_sessions").await > 0.0 {
+        assert!(Instant::now() < deadline, "the session was not cleaned up");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let mut again = connect(server, "width=32&height=24").await;
+    assert!(matches!(receive(&mut again).await, Incoming::Json(hello) if hello["type"] == "hello"));
+}
