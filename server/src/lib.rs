@@ -11,5 +11,6 @@ pub mod fields;
 pub mod gis;
 pub mod prep;
 pub mod render;
+pub mod rng;
 pub mod scene;
 pub mod store;

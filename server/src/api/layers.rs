@@ -74,14 +74,17 @@ impl LegendQuery {
     }
 }
 
-/// A query-string error: an unknown or repeated parameter is a 400, a bad value a 422 naming it.
+/// A query-string error: an unknown or repeated parameter is a 400, a bad value a 422; both
+/// name the parameter when known.
 fn query_error(e: serde_path_to_error::Error<serde_urlencoded::de::Error>) -> ApiError {
     let path = e.path().to_string();
-    let message = format!("malformed query: {}", e.inner());
-    if path == "." {
-        ApiError::BadRequest { parameter: None, message }
+    let parameter = (path != ".").then_some(path);
+    let inner = e.inner().to_string();
+    let message = format!("malformed query: {inner}");
+    if parameter.is_none() || inner.starts_with("unknown field") || inner.starts_with("duplicate field") {
+        ApiError::BadRequest { parameter, message }
     } else {
-        ApiError::Invalid { parameter: Some(path), message }
+        ApiError::Invalid { parameter, message }
     }
 }
 
@@ -116,7 +119,8 @@ async fn read_upload(state: &AppState, query: &str, request: Request) -> Result<
         .is_some_and(|v| v.trim_start().to_ascii_lowercase().starts_with("multipart/form-data"));
     let too_large = || ApiError::too_large("body", "the upload is larger than this server allows");
     let (bytes, part_filename) = if multipart {
-        let mut form = Multipart::from_request(request, state).await.map_err(|e| ApiError::bad("body", e.body_text()))?;
+        let mut form =
+            Multipart::from_request(request, state).await.map_err(|e| ApiError::bad("body", e.body_text()))?;
         let mut file = None;
         let multipart_error = |e: axum::extract::multipart::MultipartError| match e.status() {
             StatusCode::PAYLOAD_TOO_LARGE => too_large(),
@@ -229,7 +233,11 @@ pub async fn get(State(state): State<AppState>, Path(id): Path<String>) -> Resul
         (status = 401, description = "Admin token missing or wrong", body = ErrorBody),
         (status = 403, description = "No admin token configured and the client is not on loopback", body = ErrorBody),
         (status = 404, description = "Unknown layer", body = ErrorBody)))]
-pub async fn delete(_admin: Admin, State(state): State<AppState>, Path(id): Path<String>) -> Result<StatusCode, ApiError> {
+pub async fn delete(
+    _admin: Admin,
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, ApiError> {
     let store = state.store().clone();
     let meta = blocking(move || store.delete(&id)).await?;
     tracing::info!(layer = %meta.id, "layer deleted");
@@ -289,10 +297,17 @@ mod tests {
         let spec = LegendQuery::from_query("colormap=magma&range=0,10&opacity=0.5&reverse=true")
             .and_then(|q| q.spec())
             .expect("valid query");
-        assert_eq!(spec, ColorMapSpec { map: Some(ColorMapName::Magma), range: Some([0.0, 10.0]), opacity: 0.5, reverse: true });
-        for (query, parameter) in
-            [("colormap=plaid", Some("colormap")), ("range=1", Some("range")), ("range=2,2", Some("range")), ("opacity=2", Some("opacity")), ("colour=red", None)]
-        {
+        assert_eq!(
+            spec,
+            ColorMapSpec { map: Some(ColorMapName::Magma), range: Some([0.0, 10.0]), opacity: 0.5, reverse: true }
+        );
+        for (query, parameter) in [
+            ("colormap=plaid", Some("colormap")),
+            ("range=1", Some("range")),
+            ("range=2,2", Some("range")),
+            ("opacity=2", Some("opacity")),
+            ("colour=red", Some("colour")),
+        ] {
             let error = LegendQuery::from_query(query).and_then(|q| q.spec()).expect_err(query);
             assert_eq!(error.detail().parameter.as_deref(), parameter, "{query}: {error}");
         }

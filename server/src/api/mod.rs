@@ -177,10 +177,7 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         .route("/api/scene", get(routes::scene))
         .route("/api/render", get(routes::render_get).post(routes::render_post))
         .route("/api/cache/clear", post(routes::cache_clear))
-        .route(
-            "/api/layers",
-            get(layers::list).post(layers::upload).layer(DefaultBodyLimit::max(config.max_upload)),
-        )
+        .route("/api/layers", get(layers::list).post(layers::upload).layer(DefaultBodyLimit::max(config.max_upload)))
         .route("/api/layers/{id}", get(layers::get).delete(layers::delete))
         .route("/api/layers/{id}/legend.png", get(layers::legend_png))
         .route("/api/layers/{id}/legend.json", get(layers::legend_json))

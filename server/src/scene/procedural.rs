@@ -1,5 +1,6 @@
 //! Procedural plants: a deterministic fallback so that scenes render without model files.
 
+use crate::rng::SplitMix64;
 use std::f32::consts::{PI, TAU};
 use std::str::FromStr;
 use std::sync::{Arc, OnceLock};
@@ -378,27 +379,18 @@ fn leaf_pixel(kind: ProceduralKind, s: f32, t: f32) -> (f32, f32) {
     }
 }
 
-/// SplitMix64: a tiny deterministic random generator.
-struct Rng(u64);
+/// The generator's random numbers: a SplitMix64 stream per kind and seed.
+struct Rng(SplitMix64);
 
 impl Rng {
     /// A generator for one kind and seed.
     fn new(kind: ProceduralKind, seed: u64) -> Rng {
-        Rng(seed ^ (kind as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03))
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        Rng(SplitMix64::new(seed ^ (kind as u64 + 1).wrapping_mul(0xD1B5_4A32_D192_ED03)))
     }
 
     /// Uniform in [lo, hi).
     fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        let unit = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
-        lo + (hi - lo) * unit
+        self.0.range(lo, hi)
     }
 
     /// Uniform in the cube [−1, 1]³.

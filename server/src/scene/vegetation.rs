@@ -9,6 +9,7 @@
 use super::SceneError;
 use super::terrain::Terrain;
 use crate::gis::{LocalFrame, Raster};
+use crate::rng::{SplitMix64, mix};
 use std::collections::HashMap;
 
 /// One plant of a vegetation layer.
@@ -37,21 +38,10 @@ pub struct PlacementRule {
     pub scale: [f32; 2],
 }
 
-/// SplitMix64 finaliser: a well-mixed 64-bit hash step.
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 /// Four uniform numbers in [0, 1) for grid cell `(i, j)` of rule `rule`.
 fn cell_random(seed: u64, rule: usize, i: i64, j: i64) -> [f64; 4] {
-    let mut h = mix(seed ^ mix(rule as u64 ^ mix(i as u64 ^ mix(j as u64))));
-    std::array::from_fn(|_| {
-        h = mix(h);
-        (h >> 11) as f64 / (1u64 << 53) as f64
-    })
+    let mut rng = SplitMix64::new(mix(seed ^ mix(rule as u64 ^ mix(i as u64 ^ mix(j as u64)))));
+    std::array::from_fn(|_| rng.unit_f64())
 }
 
 /// Points placed so far, bucketed for minimum-spacing queries.

@@ -1,0 +1,466 @@
+//! Integration tests of the data-layer API (SPEC A2): real servers on loopback ports with the
+//! sample scene and a data directory of their own, exercised over HTTP (reqwest). Uploads are
+//! GeoTIFFs written here to cover the sample scene, and the ASCII-grid fixture
+//! `data/test/fields/ramp_scalar_4326.asc`, which lies south-west of it.
+
+use clap::Parser;
+use landsketch::api::{Server, ServerConfig};
+use landsketch::fields::legend::{LEGEND_WIDTH, SCALAR_LEGEND_HEIGHT};
+use landsketch::gis::{Crs, GeoTransform, Raster, write_geotiff_f32};
+use landsketch::render::Gpu;
+use landsketch::scene::Scene;
+use reqwest::StatusCode;
+use serde_json::Value;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
+
+const SCENE: &str = "data/boulder/scene.toml";
+
+fn loaded() -> &'static (Arc<Scene>, Arc<Gpu>) {
+    static LOADED: OnceLock<(Arc<Scene>, Arc<Gpu>)> = OnceLock::new();
+    LOADED.get_or_init(|| {
+        let scene = Scene::load(Path::new(SCENE)).expect("sample scene");
+        let gpu = Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)");
+        (Arc::new(scene), Arc::new(gpu))
+    })
+}
+
+/// A server on its own thread and runtime with the data directory `data_dir`, stopped when
+/// dropped.
+struct TestServer {
+    addr: SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<Result<(), landsketch::api::ServerError>>>,
+}
+
+impl TestServer {
+    fn start(data_dir: &Path, configure: impl FnOnce(&mut ServerConfig)) -> TestServer {
+        let mut config = ServerConfig::try_parse_from([
+            "serve",
+            "--scene",
+            SCENE,
+            "--addr",
+            "127.0.0.1:0",
+            "--data-dir",
+            data_dir.to_str().expect("UTF-8 temp dir"),
+        ])
+        .expect("valid flags");
+        config.admin_token = None;
+        config.cors_origins.clear();
+        configure(&mut config);
+        let (scene, gpu) = loaded().clone();
+        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+            runtime.block_on(async move {
+                let server = Server::bind(config).await?;
+                addr_tx.send(server.local_addr()?).expect("test waits for the address");
+                server
+                    .run_with(scene, gpu, async move {
+                        let _ = stopped.await;
+                    })
+                    .await
+            })
+        });
+        let addr = addr_rx.recv().expect("server bound");
+        let server = TestServer { addr, stop: Some(stop), thread: Some(thread) };
+        server.wait_ready();
+        server
+    }
+
+    fn wait_ready(&self) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while blocking_status(&self.url("/api/health")) != Some(200) {
+            assert!(Instant::now() < deadline, "server did not become ready");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    fn url(&self, path: &str) -> String {
+        format!("http://{}{path}", self.addr)
+    }
+
+    /// Stops the server and returns what `run` returned.
+    fn stop(mut self) -> Result<(), landsketch::api::ServerError> {
+        self.shutdown()
+    }
+
+    fn shutdown(&mut self) -> Result<(), landsketch::api::ServerError> {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        match self.thread.take() {
+            Some(thread) => thread.join().expect("server thread"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for TestServer {
+    fn drop(&mut self) {
+        let _ = self.shutdown();
+    }
+}
+
+/// Status of a GET with a plain blocking TCP request (for use outside a runtime).
+fn blocking_status(url: &str) -> Option<u16> {
+    use std::io::{Read, Write};
+    let rest = url.strip_prefix("http://")?;
+    let (host, path) = rest.split_at(rest.find('/')?);
+    let mut stream = std::net::TcpStream::connect(host).ok()?;
+    write!(stream, "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").ok()?;
+    let mut response = String::new();
+    stream.read_to_string(&mut response).ok()?;
+    response.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn client() -> reqwest::Client {
+    reqwest::Client::builder().timeout(Duration::from_secs(60)).build().expect("HTTP client")
+}
+
+async fn get(url: &str) -> reqwest::Response {
+    client().get(url).send().await.expect("GET")
+}
+
+async fn upload(server: &TestServer, query: &str, body: Vec<u8>) -> reqwest::Response {
+    client().post(server.url(&format!("/api/layers?{query}"))).body(body).send().await.expect("POST")
+}
+
+async fn delete(url: &str) -> reqwest::Response {
+    client().delete(url).send().await.expect("DELETE")
+}
+
+async fn json_of(response: reqwest::Response) -> Value {
+    let bytes = response.bytes().await.expect("body");
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&bytes)))
+}
+
+/// Asserts a JSON error with `status`, `code` and (when given) `parameter`; returns the message.
+async fn assert_error(response: reqwest::Response, status: u16, code: &str, parameter: Option<&str>) -> String {
+    let url = response.url().to_string();
+    assert_eq!(response.status().as_u16(), status, "{url}");
+    let body = json_of(response).await;
+    let error = &body["error"];
+    assert_eq!(error["code"], code, "{url}: {body}");
+    if let Some(parameter) = parameter {
+        assert_eq!(error["parameter"], parameter, "{url}: {body}");
+    }
+    let message = error["message"].as_str().unwrap_or_default().to_string();
+    assert!(!message.is_empty(), "{url}: {body}");
+    message
+}
+
+/// A Float32 GeoTIFF (EPSG:4326) of 8 × 6 cells exactly covering the sample scene's DEM, with
+/// values `offset + column`.
+fn scene_tiff(offset: f64) -> Vec<u8> {
+    let dem = &loaded().0.terrain.dem;
+    let e = dem.extent();
+    let (width, height) = (8, 6);
+    let raster = Raster {
+        width,
+        height,
+        data: (0..width * height).map(|i| offset + (i % width) as f64).collect(),
+        nodata: None,
+        transform: GeoTransform {
+            origin_x: e.min_x,
+            origin_y: e.max_y,
+            cell_width: (e.max_x - e.min_x) / width as f64,
+            cell_height: (e.max_y - e.min_y) / height as f64,
+        },
+        crs: Crs::Geographic { epsg: Some(4326) },
+        palette: None,
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("ramp.tif");
+    write_geotiff_f32(&path, &raster).expect("write GeoTIFF");
+    std::fs::read(&path).expect("read GeoTIFF")
+}
+
+fn fixture(name: &str) -> Vec<u8> {
+    std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/test").join(name)).expect("fixture")
+}
+
+/// Every path under `dir`, relative, sorted.
+fn tree(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).expect("read dir") {
+            let path = entry.expect("entry").path();
+            if path.is_dir() {
+                stack.push(path.clone());
+            }
+            out.push(path.strip_prefix(dir).expect("inside").to_path_buf());
+        }
+    }
+    out.sort();
+    out
+}
+
+/// A `multipart/form-data` body with text fields and one file part; returns the content type
+/// and the body.
+fn multipart(fields: &[(&str, &str)], filename: &str, file: &[u8]) -> (String, Vec<u8>) {
+    let boundary = "landsketch-test-boundary-7f3a";
+    let mut body = Vec::new();
+    for (name, value) in fields {
+        body.extend_from_slice(
+            format!("--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"\r\n\r\n{value}\r\n").as_bytes(),
+        );
+    }
+    body.extend_from_slice(
+        format!(
+            "--{boundary}\r\nContent-Disposition: form-data; name=\"file\"; filename=\"{filename}\"\r\n\
+             Content-Type: application/octet-stream\r\n\r\n"
+        )
+        .as_bytes(),
+    );
+    body.extend_from_slice(file);
+    body.extend_from_slice(format!("\r\n--{boundary}--\r\n").as_bytes());
+    (format!("multipart/form-data; boundary={boundary}"), body)
+}
+
+const STEP_1: &str = "name=Air%20temperature&kind=scalar&time=2024-06-01T00:00:00Z&filename=t1.tif&units=degC";
+const STEP_2: &str = "name=Air%20temperature&kind=scalar&time=2024-06-02T00:00:00Z&filename=t2.tif";
+
+#[tokio::test]
+async fn upload_list_get_legends_and_delete() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    assert_eq!(json_of(get(&server.url("/api/layers")).await).await["layers"], Value::Array(Vec::new()));
+
+    let created = upload(&server, STEP_1, scene_tiff(0.0)).await;
+    assert_eq!(created.status(), StatusCode::CREATED);
+    let location = created.headers()["location"].to_str().expect("ASCII").to_string();
+    let meta = json_of(created).await;
+    let id = meta["id"].as_str().expect("id").to_string();
+    assert!(id.starts_with("air-temperature-"), "{meta}");
+    assert_eq!(location, format!("/api/layers/{id}"));
+    assert_eq!((meta["kind"].as_str(), meta["crs"].as_str()), (Some("scalar"), Some("EPSG:4326")), "{meta}");
+    assert_eq!((meta["min"].as_f64(), meta["max"].as_f64()), (Some(0.0), Some(7.0)), "{meta}");
+    assert_eq!(meta["units"], "degC");
+    assert_eq!(meta["source"], "t1.tif");
+
+    // A second time step of the same name extends the series.
+    let appended = upload(&server, STEP_2, scene_tiff(10.0)).await;
+    assert_eq!(appended.status(), StatusCode::OK);
+    let series = json_of(appended).await;
+    assert_eq!(series["id"], id.as_str());
+    let times: Vec<&str> =
+        series["steps"].as_array().expect("steps").iter().filter_map(|s| s["time"].as_str()).collect();
+    assert_eq!(times, ["2024-06-01T00:00:00Z", "2024-06-02T00:00:00Z"]);
+    assert_eq!(series["max"].as_f64(), Some(17.0));
+
+    // The same layer as a multipart form (file part plus text fields).
+    let (content_type, body) = multipart(&[("name", "Form ramp"), ("kind", "scalar")], "form.tif", &scene_tiff(100.0));
+    let form = client()
+        .post(server.url("/api/layers"))
+        .header("content-type", content_type)
+        .body(body)
+        .send()
+        .await
+        .expect("POST");
+    assert_eq!(form.status(), StatusCode::CREATED);
+    let form = json_of(form).await;
+    assert_eq!((form["name"].as_str(), form["source"].as_str()), (Some("Form ramp"), Some("form.tif")), "{form}");
+    let form_id = form["id"].as_str().expect("id").to_string();
+
+    let listed = json_of(get(&server.url("/api/layers")).await).await;
+    let names: Vec<&str> =
+        listed["layers"].as_array().expect("layers").iter().filter_map(|l| l["name"].as_str()).collect();
+    assert_eq!(names, ["Air temperature", "Form ramp"]);
+    assert_eq!(json_of(get(&server.url(&location)).await).await, series);
+
+    let png = get(&server.url(&format!("/api/layers/{id}/legend.png?colormap=magma&range=0,20"))).await;
+    assert_eq!(png.status(), StatusCode::OK);
+    assert_eq!(png.headers()["content-type"], "image/png");
+    let image = image::load_from_memory(&png.bytes().await.expect("PNG")).expect("a valid PNG");
+    assert_eq!((image.width(), image.height()), (LEGEND_WIDTH, SCALAR_LEGEND_HEIGHT));
+
+    let legend =
+        json_of(get(&server.url(&format!("/api/layers/{id}/legend.json?opacity=0.5&reverse=true"))).await).await;
+    assert_eq!(legend["title"], "Air temperature");
+    assert_eq!((legend["colormap"].as_str(), legend["units"].as_str()), (Some("viridis"), Some("degC")), "{legend}");
+    assert_eq!(legend["range"], serde_json::json!([0.0, 17.0]));
+    assert!(legend["opacity"].as_f64().is_some_and(|o| (o - 0.5).abs() < 0.01), "{legend}");
+    assert_eq!(legend["stops"].as_array().map(Vec::len), Some(16));
+    let magma =
+        json_of(get(&server.url(&format!("/api/layers/{id}/legend.json?colormap=magma&range=0,20"))).await).await;
+    assert_eq!((magma["colormap"].as_str(), &magma["range"]), (Some("magma"), &serde_json::json!([0.0, 20.0])));
+
+    let legend_url = |query: &str| server.url(&format!("/api/layers/{id}/legend.json?{query}"));
+    assert_error(get(&legend_url("opacity=2")).await, 422, "invalid_parameter", Some("opacity")).await;
+    assert_error(get(&legend_url("range=5,5")).await, 422, "invalid_parameter", Some("range")).await;
+    assert_error(get(&legend_url("colormap=plaid")).await, 422, "invalid_parameter", Some("colormap")).await;
+    assert_error(get(&legend_url("colour=red")).await, 400, "bad_request", Some("colour")).await;
+
+    // Unknown ids, including ones that look like paths.
+    for path in ["/api/layers/no-such-layer", "/api/layers/no-such-layer/legend.png", "/api/layers/..%2F..%2Fetc"] {
+        assert_error(get(&server.url(path)).await, 404, "not_found", None).await;
+    }
+    assert_error(delete(&server.url("/api/layers/no-such-layer")).await, 404, "not_found", None).await;
+
+    let deleted = delete(&server.url(&location)).await;
+    assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
+    let message = assert_error(get(&server.url(&location)).await, 404, "not_found", None).await;
+    assert!(message.contains(&id), "{message}");
+    assert_error(delete(&server.url(&location)).await, 404, "not_found", None).await;
+    let listed = json_of(get(&server.url("/api/layers")).await).await;
+    assert_eq!(listed["layers"].as_array().map(Vec::len), Some(1));
+    assert!(!dir.path().join("layers").join(&id).exists());
+    assert!(dir.path().join("layers").join(&form_id).join("meta.json").is_file());
+
+    // Documented and counted like every other route.
+    let openapi = json_of(get(&server.url("/api/openapi.json")).await).await;
+    for (path, method) in [
+        ("/api/layers", "get"),
+        ("/api/layers", "post"),
+        ("/api/layers/{id}", "get"),
+        ("/api/layers/{id}", "delete"),
+        ("/api/layers/{id}/legend.png", "get"),
+        ("/api/layers/{id}/legend.json", "get"),
+    ] {
+        assert!(openapi["paths"][path][method].is_object(), "OpenAPI lacks {method} {path}");
+    }
+    assert!(openapi["components"]["schemas"]["LayerMeta"].is_object());
+    let metrics = get(&server.url("/metrics")).await.text().await.expect("metrics");
+    for line in [
+        r#"route="/api/layers",method="POST",status="201""#,
+        r#"route="/api/layers/{id}",method="DELETE",status="204""#,
+        r#"route="/api/layers/{id}/legend.png",method="GET",status="200""#,
+    ] {
+        assert!(metrics.contains(line), "metrics lack {line}:\n{metrics}");
+    }
+}
+
+#[tokio::test]
+async fn bad_uploads_get_errors_and_leave_the_store_unchanged() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |c| c.max_upload = 64 << 10);
+    assert_eq!(upload(&server, "name=Kept&kind=scalar", scene_tiff(0.0)).await.status(), StatusCode::CREATED);
+    let before = tree(dir.path());
+    let listed = json_of(get(&server.url("/api/layers")).await).await;
+
+    let garbage = b"this is not a raster at all".repeat(20);
+    assert_error(
+        upload(&server, "name=Garbage&kind=scalar&filename=x.tif", garbage.clone()).await,
+        422,
+        "invalid_parameter",
+        None,
+    )
+    .await;
+    assert_error(upload(&server, "name=Garbage&kind=scalar", Vec::new()).await, 422, "invalid_parameter", None).await;
+    let outside = upload(
+        &server,
+        "name=Ramp&kind=scalar&crs=EPSG:4326&filename=ramp.asc",
+        fixture("fields/ramp_scalar_4326.asc"),
+    )
+    .await;
+    let message = assert_error(outside, 422, "invalid_parameter", None).await;
+    assert!(message.contains("field extent") && message.contains("scene extent"), "{message}");
+    assert!(message.contains("-105.5") && message.contains("-105.4"), "both extents in degrees: {message}");
+    assert_error(upload(&server, "kind=scalar", scene_tiff(0.0)).await, 422, "invalid_parameter", Some("name")).await;
+    assert_error(upload(&server, "name=K&kind=vector", scene_tiff(0.0)).await, 422, "invalid_parameter", Some("kind"))
+        .await;
+    assert_error(upload(&server, "name=K", scene_tiff(0.0)).await, 422, "invalid_parameter", None).await;
+    assert_error(upload(&server, "name=K&kind=scalar&colour=red", scene_tiff(0.0)).await, 400, "bad_request", None)
+        .await;
+    assert_error(
+        upload(&server, "name=K&kind=scalar&time=June", scene_tiff(0.0)).await,
+        422,
+        "invalid_parameter",
+        None,
+    )
+    .await;
+    // A time step for a layer without time conflicts with it.
+    assert_error(
+        upload(&server, "name=Kept&kind=scalar&time=2024-06-01", scene_tiff(0.0)).await,
+        409,
+        "conflict",
+        None,
+    )
+    .await;
+    let huge = vec![0u8; 100 << 10];
+    assert_error(upload(&server, "name=Huge&kind=scalar", huge.clone()).await, 413, "too_large", Some("body")).await;
+    let (content_type, body) = multipart(&[("name", "Huge"), ("kind", "scalar")], "huge.tif", &huge);
+    let form = client().post(server.url("/api/layers")).header("content-type", content_type).body(body).send().await;
+    assert_error(form.expect("POST"), 413, "too_large", Some("body")).await;
+    let (content_type, body) = multipart(&[("name", "Garbage"), ("kind", "scalar")], "g.tif", &garbage);
+    let form = client().post(server.url("/api/layers")).header("content-type", content_type).body(body).send().await;
+    assert_error(form.expect("POST"), 422, "invalid_parameter", None).await;
+
+    assert_eq!(tree(dir.path()), before, "files changed");
+    assert_eq!(json_of(get(&server.url("/api/layers")).await).await, listed, "listing changed");
+}
+
+#[tokio::test]
+async fn concurrent_uploads_all_land() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let mut tasks = Vec::new();
+    for i in 0..6 {
+        let url = server.url(&format!("/api/layers?name=Layer%20{i}&kind=scalar"));
+        tasks.push(tokio::spawn(client().post(url).body(scene_tiff(f64::from(i))).send()));
+        let url = server.url(&format!("/api/layers?name=Series&kind=scalar&time=2024-06-{:02}", i + 1));
+        tasks.push(tokio::spawn(client().post(url).body(scene_tiff(f64::from(i))).send()));
+    }
+    for task in tasks {
+        let response = task.await.expect("task").expect("POST");
+        assert!(response.status().is_success(), "{}", response.status());
+    }
+    let listed = json_of(get(&server.url("/api/layers")).await).await;
+    let layers = listed["layers"].as_array().expect("layers");
+    assert_eq!(layers.len(), 7, "{listed}");
+    let series = layers.iter().find(|l| l["name"] == "Series").expect("the series");
+    assert_eq!(series["steps"].as_array().map(Vec::len), Some(6), "{series}");
+    drop(server);
+    // What the store wrote reads back completely.
+    let reopened = landsketch::store::Store::open(dir.path()).expect("reopen");
+    assert_eq!(reopened.list().len(), 7);
+    assert_eq!(reopened.field(series["id"].as_str().expect("id")).expect("series data").steps().len(), 6);
+}
+
+#[tokio::test]
+async fn layers_survive_a_restart() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let meta = json_of(upload(&server, STEP_1, scene_tiff(0.0)).await).await;
+    let id = meta["id"].as_str().expect("id").to_string();
+    server.stop().expect("clean shutdown");
+
+    let server = TestServer::start(dir.path(), |_| {});
+    let listed = json_of(get(&server.url("/api/layers")).await).await;
+    assert_eq!(listed["layers"], Value::Array(vec![meta.clone()]));
+    assert_eq!(json_of(get(&server.url(&format!("/api/layers/{id}"))).await).await, meta);
+    let png = get(&server.url(&format!("/api/layers/{id}/legend.png"))).await;
+    assert_eq!(png.status(), StatusCode::OK);
+    // The series goes on after the restart.
+    let appended = upload(&server, STEP_2, scene_tiff(1.0)).await;
+    assert_eq!(appended.status(), StatusCode::OK);
+    assert_eq!(json_of(appended).await["steps"].as_array().map(Vec::len), Some(2));
+}
+
+#[tokio::test]
+async fn writes_need_the_admin_token() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |c| c.admin_token = Some("s3cret".into()));
+    let url = server.url(&format!("/api/layers?{STEP_1}"));
+    let missing = client().post(&url).body(scene_tiff(0.0)).send().await.expect("POST");
+    assert_eq!(missing.headers()["www-authenticate"], "Bearer");
+    assert_error(missing, 401, "unauthorized", None).await;
+    let wrong = client().post(&url).bearer_auth("guess").body(scene_tiff(0.0)).send().await.expect("POST");
+    assert_error(wrong, 401, "unauthorized", None).await;
+    assert!(tree(&dir.path().join("layers")).is_empty());
+
+    let created = client().post(&url).bearer_auth("s3cret").body(scene_tiff(0.0)).send().await.expect("POST");
+    assert_eq!(created.status(), StatusCode::CREATED);
+    let location = server.url(created.headers()["location"].to_str().expect("ASCII"));
+    // Reading stays public; deleting needs the token too.
+    assert_eq!(get(&location).await.status(), StatusCode::OK);
+    assert_eq!(get(&server.url("/api/layers")).await.status(), StatusCode::OK);
+    assert_error(delete(&location).await, 401, "unauthorized", None).await;
+    let deleted = client().delete(&location).bearer_auth("s3cret").send().await.expect("DELETE");
+    assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
+}
