@@ -36,6 +36,11 @@ impl SplitMix64 {
         lo + (hi - lo) * unit
     }
 
+    /// True with probability `p`.
+    pub fn chance(&mut self, p: f32) -> bool {
+        self.range(0.0, 1.0) < p
+    }
+
     /// Uniform in [0, 1) with 53 bits of resolution.
     pub fn unit_f64(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64

@@ -36,6 +36,7 @@
 //! light/thin (R) to dark/heavy (A), so shading can pick one; as in the thesis there is no
 //! nesting between channels and no mip chain.
 
+use crate::rng::SplitMix64 as Rng;
 use glam::Vec2;
 use image::{GrayImage, Luma, Rgba, RgbaImage};
 use serde::{Deserialize, Serialize};
@@ -680,34 +681,6 @@ impl Periodic {
     fn at(&self, x: f32) -> f32 {
         let total: f32 = self.terms.iter().map(|t| t.1).sum();
         self.terms.iter().map(|&(f, a, p)| a * (f * x + p).sin()).sum::<f32>() / total
-    }
-}
-
-/// SplitMix64: a tiny deterministic random generator.
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [lo, hi).
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        let unit = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
-        lo + (hi - lo) * unit
-    }
-
-    /// True with probability `p`.
-    fn chance(&mut self, p: f32) -> bool {
-        self.range(0.0, 1.0) < p
     }
 }
 
