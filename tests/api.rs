@@ -1,89 +1,46 @@
 //! Integration tests of `landsketch serve`: real servers on loopback ports rendering the sample
 //! scene at small sizes, exercised over HTTP (reqwest) and WebSocket (tokio-tungstenite).
 
+mod common;
+
 use clap::Parser;
+use common::server::{TestServer, client, get, json_of, loaded};
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::view::{ImageFormat, Limits, Source, ViewParams};
 use landsketch::api::ws::{FrameHeader, HEADER_LEN};
 use landsketch::api::{Server, ServerConfig};
-use landsketch::render::{Gpu, Style};
-use landsketch::scene::Scene;
+use landsketch::render::Style;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
-use std::net::SocketAddr;
-use std::path::Path;
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
-const SCENE: &str = "data/boulder/scene.toml";
-
-fn loaded() -> &'static (Arc<Scene>, Arc<Gpu>) {
-    static LOADED: OnceLock<(Arc<Scene>, Arc<Gpu>)> = OnceLock::new();
-    LOADED.get_or_init(|| {
-        let scene = Scene::load(Path::new(SCENE)).expect("sample scene");
-        let gpu = Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)");
-        (Arc::new(scene), Arc::new(gpu))
-    })
+/// The data directory of the servers in this file.
+fn data_dir() -> std::path::PathBuf {
+    std::env::temp_dir().join("landsketch-api-tests")
 }
 
-/// A server on its own thread and runtime, stopped when dropped.
-struct TestServer {
-    addr: SocketAddr,
-    stop: Option<tokio::sync::oneshot::Sender<()>>,
-    thread: Option<std::thread::JoinHandle<Result<(), landsketch::api::ServerError>>>,
+trait Servers {
+    fn shared() -> &'static TestServer;
+    fn tiny_queue() -> &'static TestServer;
+    fn guarded() -> &'static TestServer;
 }
 
-impl TestServer {
-    fn start(configure: impl FnOnce(&mut ServerConfig)) -> TestServer {
-        let data_dir = std::env::temp_dir().join("landsketch-api-tests");
-        let mut config = ServerConfig::try_parse_from([
-            "serve",
-            "--scene",
-            SCENE,
-            "--addr",
-            "127.0.0.1:0",
-            "--data-dir",
-            data_dir.to_str().expect("UTF-8 temp dir"),
-        ])
-        .expect("valid flags");
-        config.admin_token = None;
-        config.cors_origins.clear();
-        configure(&mut config);
-        let (scene, gpu) = loaded().clone();
-        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
-        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-        let thread = std::thread::spawn(move || {
-            let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
-            runtime.block_on(async move {
-                let server = Server::bind(config).await?;
-                addr_tx.send(server.local_addr()?).expect("test waits for the address");
-                server
-                    .run_with(scene, gpu, async move {
-                        let _ = stopped.await;
-                    })
-                    .await
-            })
-        });
-        let addr = addr_rx.recv().expect("server bound");
-        let server = TestServer { addr, stop: Some(stop), thread: Some(thread) };
-        server.wait_ready();
-        server
-    }
-
+impl Servers for TestServer {
     /// The shared server with the default configuration.
     fn shared() -> &'static TestServer {
         static SHARED: OnceLock<TestServer> = OnceLock::new();
-        SHARED.get_or_init(|| TestServer::start(|_| {}))
+        SHARED.get_or_init(|| TestServer::start(&data_dir(), |_| {}))
     }
 
     /// A shared server with a render queue of 2 and no cache.
     fn tiny_queue() -> &'static TestServer {
         static TINY: OnceLock<TestServer> = OnceLock::new();
         TINY.get_or_init(|| {
-            TestServer::start(|c| {
+            TestServer::start(&data_dir(), |c| {
                 c.queue_depth = 2;
                 c.cache_bytes = 0;
             })
@@ -94,7 +51,7 @@ impl TestServer {
     fn guarded() -> &'static TestServer {
         static GUARDED: OnceLock<TestServer> = OnceLock::new();
         GUARDED.get_or_init(|| {
-            TestServer::start(|c| {
+            TestServer::start(&data_dir(), |c| {
                 c.admin_token = Some("s3cret".into());
                 c.cors_origins = vec!["https://maps.example.org".into()];
                 c.max_sessions = 1;
@@ -102,77 +59,10 @@ impl TestServer {
             })
         })
     }
-
-    fn wait_ready(&self) {
-        let deadline = Instant::now() + Duration::from_secs(60);
-        let url = self.url("/api/health");
-        loop {
-            let status = blocking_status(&url);
-            if status == Some(200) {
-                return;
-            }
-            assert!(Instant::now() < deadline, "server did not become ready");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-
-    fn url(&self, path: &str) -> String {
-        format!("http://{}{path}", self.addr)
-    }
-
-    fn ws_url(&self, query: &str) -> String {
-        format!("ws://{}/api/ws?{query}", self.addr)
-    }
-
-    /// Stops the server and returns what `run` returned.
-    fn stop(mut self) -> Result<(), landsketch::api::ServerError> {
-        self.shutdown()
-    }
-
-    fn shutdown(&mut self) -> Result<(), landsketch::api::ServerError> {
-        if let Some(stop) = self.stop.take() {
-            let _ = stop.send(());
-        }
-        match self.thread.take() {
-            Some(thread) => thread.join().expect("server thread"),
-            None => Ok(()),
-        }
-    }
-}
-
-impl Drop for TestServer {
-    fn drop(&mut self) {
-        let _ = self.shutdown();
-    }
-}
-
-/// Status of a GET with a plain blocking TCP request (for use outside a runtime).
-fn blocking_status(url: &str) -> Option<u16> {
-    use std::io::{Read, Write};
-    let rest = url.strip_prefix("http://")?;
-    let (host, path) = rest.split_at(rest.find('/')?);
-    let mut stream = std::net::TcpStream::connect(host).ok()?;
-    write!(stream, "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").ok()?;
-    let mut response = String::new();
-    stream.read_to_string(&mut response).ok()?;
-    response.split_whitespace().nth(1)?.parse().ok()
-}
-
-fn client() -> reqwest::Client {
-    reqwest::Client::builder().timeout(Duration::from_secs(60)).build().expect("HTTP client")
-}
-
-async fn get(url: &str) -> reqwest::Response {
-    client().get(url).send().await.expect("GET")
 }
 
 async fn post(url: &str, body: impl Into<String>) -> reqwest::Response {
     client().post(url).header("content-type", "application/json").body(body.into()).send().await.expect("POST")
-}
-
-async fn json_of(response: reqwest::Response) -> Value {
-    let bytes = response.bytes().await.expect("body");
-    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&bytes)))
 }
 
 /// Asserts a JSON error with `status`, `code` and (when given) `parameter`.
@@ -503,7 +393,7 @@ async fn cors_is_off_unless_origins_are_configured() {
 
 #[tokio::test]
 async fn shutdown_finishes_in_flight_renders() {
-    let server = TestServer::start(|_| {});
+    let server = TestServer::start(&data_dir(), |_| {});
     let url = server.url("/api/render?width=640&height=480");
     let request = tokio::spawn(get_owned(url));
     tokio::time::sleep(Duration::from_millis(100)).await;

@@ -3,127 +3,14 @@
 //! GeoTIFFs written here to cover the sample scene, and the ASCII-grid fixture
 //! `data/test/fields/ramp_scalar_4326.asc`, which lies south-west of it.
 
-use clap::Parser;
-use landsketch::api::{Server, ServerConfig};
+mod common;
+
+use common::server::{TestServer, client, get, json_of, loaded};
 use landsketch::fields::legend::{LEGEND_WIDTH, SCALAR_LEGEND_HEIGHT};
 use landsketch::gis::{Crs, GeoTransform, Raster, write_geotiff_f32};
-use landsketch::render::Gpu;
-use landsketch::scene::Scene;
 use reqwest::StatusCode;
 use serde_json::Value;
-use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, OnceLock};
-use std::time::{Duration, Instant};
-
-const SCENE: &str = "data/boulder/scene.toml";
-
-fn loaded() -> &'static (Arc<Scene>, Arc<Gpu>) {
-    static LOADED: OnceLock<(Arc<Scene>, Arc<Gpu>)> = OnceLock::new();
-    LOADED.get_or_init(|| {
-        let scene = Scene::load(Path::new(SCENE)).expect("sample scene");
-        let gpu = Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)");
-        (Arc::new(scene), Arc::new(gpu))
-    })
-}
-
-/// A server on its own thread and runtime with the data directory `data_dir`, stopped when
-/// dropped.
-struct TestServer {
-    addr: SocketAddr,
-    stop: Option<tokio::sync::oneshot::Sender<()>>,
-    thread: Option<std::thread::JoinHandle<Result<(), landsketch::api::ServerError>>>,
-}
-
-impl TestServer {
-    fn start(data_dir: &Path, configure: impl FnOnce(&mut ServerConfig)) -> TestServer {
-        let mut config = ServerConfig::try_parse_from([
-            "serve",
-            "--scene",
-            SCENE,
-            "--addr",
-            "127.0.0.1:0",
-            "--data-dir",
-            data_dir.to_str().expect("UTF-8 temp dir"),
-        ])
-        .expect("valid flags");
-        config.admin_token = None;
-        config.cors_origins.clear();
-        configure(&mut config);
-        let (scene, gpu) = loaded().clone();
-        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
-        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-        let thread = std::thread::spawn(move || {
-            let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
-            runtime.block_on(async move {
-                let server = Server::bind(config).await?;
-                addr_tx.send(server.local_addr()?).expect("test waits for the address");
-                server
-                    .run_with(scene, gpu, async move {
-                        let _ = stopped.await;
-                    })
-                    .await
-            })
-        });
-        let addr = addr_rx.recv().expect("server bound");
-        let server = TestServer { addr, stop: Some(stop), thread: Some(thread) };
-        server.wait_ready();
-        server
-    }
-
-    fn wait_ready(&self) {
-        let deadline = Instant::now() + Duration::from_secs(60);
-        while blocking_status(&self.url("/api/health")) != Some(200) {
-            assert!(Instant::now() < deadline, "server did not become ready");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-
-    fn url(&self, path: &str) -> String {
-        format!("http://{}{path}", self.addr)
-    }
-
-    /// Stops the server and returns what `run` returned.
-    fn stop(mut self) -> Result<(), landsketch::api::ServerError> {
-        self.shutdown()
-    }
-
-    fn shutdown(&mut self) -> Result<(), landsketch::api::ServerError> {
-        if let Some(stop) = self.stop.take() {
-            let _ = stop.send(());
-        }
-        match self.thread.take() {
-            Some(thread) => thread.join().expect("server thread"),
-            None => Ok(()),
-        }
-    }
-}
-
-impl Drop for TestServer {
-    fn drop(&mut self) {
-        let _ = self.shutdown();
-    }
-}
-
-/// Status of a GET with a plain blocking TCP request (for use outside a runtime).
-fn blocking_status(url: &str) -> Option<u16> {
-    use std::io::{Read, Write};
-    let rest = url.strip_prefix("http://")?;
-    let (host, path) = rest.split_at(rest.find('/')?);
-    let mut stream = std::net::TcpStream::connect(host).ok()?;
-    write!(stream, "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").ok()?;
-    let mut response = String::new();
-    stream.read_to_string(&mut response).ok()?;
-    response.split_whitespace().nth(1)?.parse().ok()
-}
-
-fn client() -> reqwest::Client {
-    reqwest::Client::builder().timeout(Duration::from_secs(60)).build().expect("HTTP client")
-}
-
-async fn get(url: &str) -> reqwest::Response {
-    client().get(url).send().await.expect("GET")
-}
 
 async fn upload(server: &TestServer, query: &str, body: Vec<u8>) -> reqwest::Response {
     client().post(server.url(&format!("/api/layers?{query}"))).body(body).send().await.expect("POST")
@@ -131,11 +18,6 @@ async fn upload(server: &TestServer, query: &str, body: Vec<u8>) -> reqwest::Res
 
 async fn delete(url: &str) -> reqwest::Response {
     client().delete(url).send().await.expect("DELETE")
-}
-
-async fn json_of(response: reqwest::Response) -> Value {
-    let bytes = response.bytes().await.expect("body");
-    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&bytes)))
 }
 
 /// Asserts a JSON error with `status`, `code` and (when given) `parameter`; returns the message.

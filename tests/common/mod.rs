@@ -2,6 +2,8 @@
 //! comparison with a tolerance and image statistics. (Each test binary uses a subset.)
 #![allow(dead_code)]
 
+pub mod server;
+
 use image::RgbaImage;
 use landsketch::gis::{Crs, GeoTransform, Raster};
 use landsketch::render::Gpu;

@@ -1,0 +1,134 @@
+//! A real `landsketch serve` on a loopback port for the API tests: started on its own thread
+//! and runtime with the sample scene, stopped when dropped; plus small HTTP helpers.
+
+use clap::Parser;
+use landsketch::api::{Server, ServerConfig};
+use landsketch::render::Gpu;
+use landsketch::scene::Scene;
+use serde_json::Value;
+use std::net::SocketAddr;
+use std::path::Path;
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
+
+pub const SCENE: &str = "data/boulder/scene.toml";
+
+pub fn loaded() -> &'static (Arc<Scene>, Arc<Gpu>) {
+    static LOADED: OnceLock<(Arc<Scene>, Arc<Gpu>)> = OnceLock::new();
+    LOADED.get_or_init(|| {
+        let scene = Scene::load(Path::new(SCENE)).expect("sample scene");
+        let gpu = Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)");
+        (Arc::new(scene), Arc::new(gpu))
+    })
+}
+
+/// A server on its own thread and runtime with the data directory `data_dir`, stopped when
+/// dropped.
+pub struct TestServer {
+    pub addr: SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<Result<(), landsketch::api::ServerError>>>,
+}
+
+impl TestServer {
+    pub fn start(data_dir: &Path, configure: impl FnOnce(&mut ServerConfig)) -> TestServer {
+        let mut config = ServerConfig::try_parse_from([
+            "serve",
+            "--scene",
+            SCENE,
+            "--addr",
+            "127.0.0.1:0",
+            "--data-dir",
+            data_dir.to_str().expect("UTF-8 temp dir"),
+        ])
+        .expect("valid flags");
+        config.admin_token = None;
+        config.cors_origins.clear();
+        configure(&mut config);
+        let (scene, gpu) = loaded().clone();
+        let (addr_tx, addr_rx) = std::sync::mpsc::channel();
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            let runtime = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+            runtime.block_on(async move {
+                let server = Server::bind(config).await?;
+                addr_tx.send(server.local_addr()?).expect("test waits for the address");
+                server
+                    .run_with(scene, gpu, async move {
+                        let _ = stopped.await;
+                    })
+                    .await
+            })
+        });
+        let addr = addr_rx.recv().expect("server bound");
+        let server = TestServer { addr, stop: Some(stop), thread: Some(thread) };
+        server.wait_ready();
+        server
+    }
+
+    pub fn wait_ready(&self) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while blocking_status(&self.url("/api/health")) != Some(200) {
+            assert!(Instant::now() < deadline, "server did not become ready");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// The HTTP URL of `path`.
+    /// The HTTP URL of `path`.
+    pub fn url(&self, path: &str) -> String {
+        format!("http://{}{path}", self.addr)
+    }
+
+    /// The WebSocket URL with `query`.
+    pub fn ws_url(&self, query: &str) -> String {
+        format!("ws://{}/api/ws?{query}", self.addr)
+    }
+
+    /// Stops the server and returns what `run` returned.
+    pub fn stop(mut self) -> Result<(), landsketch::api::ServerError> {
+        self.shutdown()
+    }
+
+    pub fn shutdown(&mut self) -> Result<(), landsketch::api::ServerError> {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        match self.thread.take() {
+            Some(thread) => thread.join().expect("server thread"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for TestServer {
+    fn drop(&mut self) {
+        let _ = self.shutdown();
+    }
+}
+
+/// Status of a GET with a plain blocking TCP request (for use outside a runtime).
+pub fn blocking_status(url: &str) -> Option<u16> {
+    use std::io::{Read, Write};
+    let rest = url.strip_prefix("http://")?;
+    let (host, path) = rest.split_at(rest.find('/')?);
+    let mut stream = std::net::TcpStream::connect(host).ok()?;
+    write!(stream, "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").ok()?;
+    let mut response = String::new();
+    stream.read_to_string(&mut response).ok()?;
+    response.split_whitespace().nth(1)?.parse().ok()
+}
+
+pub fn client() -> reqwest::Client {
+    reqwest::Client::builder().timeout(Duration::from_secs(60)).build().expect("HTTP client")
+}
+
+pub async fn get(url: &str) -> reqwest::Response {
+    client().get(url).send().await.expect("GET")
+}
+
+/// The JSON body of a response (panics with the body if it is not JSON).
+pub async fn json_of(response: reqwest::Response) -> Value {
+    let bytes = response.bytes().await.expect("body");
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&bytes)))
+}
