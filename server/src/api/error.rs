@@ -63,7 +63,7 @@ pub struct ErrorDetail {
     pub code: &'static str,
     /// Human-readable explanation.
     pub message: String,
-    /// The offending request parameter (`width`, `camera.pitch`, `style.hatch_spacing`, …).
+    /// The offending request parameter (`width`, `camera.pitch`, `style.hatch_tiles`, …).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub parameter: Option<String>,
 }

@@ -271,7 +271,7 @@ pub struct RenderQuery {
     /// Style preset name (none defined yet).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
-    /// Style overrides as a URL-encoded JSON object, e.g. `{"hatch_spacing":9}`.
+    /// Style overrides as a URL-encoded JSON object, e.g. `{"hatch_map":2}`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub style: Option<String>,
 }
