@@ -272,6 +272,7 @@ async fn a_view_request_round_trips_through_query_parameters() {
         json!({}),
         json!({"camera": {"position": [205.25, 185.5]}, "width": 160, "height": 120}),
         json!({"camera": {"position": [0, -1500, 3000], "yaw": 12.3, "pitch": -35, "fov": 45}, "format": "jpeg"}),
+        json!({"camera": {"roll": -12.5}}),
         json!({"camera": {"eye_height": 12}, "format": "jpg", "quality": 55, "style": {"contour_threshold": 0.35, "ink": [0.1, 0.2, 0.3]}}),
     ] {
         let params: ViewParams = serde_json::from_value(body.clone()).expect("body");
@@ -288,6 +289,8 @@ async fn a_view_request_round_trips_through_query_parameters() {
         assert_eq!(again.normalize(scene, limits, Source::Body).expect("valid"), view);
         assert_eq!(view.etag("scene"), again.normalize(scene, limits, Source::Body).expect("valid").etag("scene"));
     }
+    let rolled: ViewParams = serde_json::from_value(json!({"camera": {"roll": 190}})).expect("body");
+    assert!(rolled.normalize(scene, limits, Source::Body).is_err(), "roll beyond 180 degrees accepted");
     let default = ViewParams::default().normalize(scene, limits, Source::Body).expect("default");
     assert_eq!(default.camera, scene.default_camera);
     assert_eq!((default.width, default.height, default.format), (1024, 768, ImageFormat::Png));

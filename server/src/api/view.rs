@@ -121,6 +121,10 @@ pub struct CameraParams {
     /// Vertical field of view in degrees, 1…170.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fov: Option<f32>,
+    /// Rotation about the view direction in degrees, −180…180; positive turns the picture
+    /// counter-clockwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roll: Option<f32>,
 }
 
 /// A camera resolved against the terrain.
@@ -189,6 +193,7 @@ impl CameraParams {
         camera.yaw = checked(self.yaw, camera.yaw, &name("yaw"), -3600.0, 3600.0)?;
         camera.pitch = checked(self.pitch, camera.pitch, &name("pitch"), -90.0, 90.0)?;
         camera.fov = checked(self.fov, camera.fov, &name("fov"), 1.0, 170.0)?;
+        camera.roll = checked(self.roll, camera.roll, &name("roll"), -180.0, 180.0)?;
         Ok(resolved)
     }
 }
@@ -256,6 +261,9 @@ pub struct RenderQuery {
     /// Vertical field of view in degrees, 1…170.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fov: Option<f32>,
+    /// Rotation about the view direction in degrees, −180…180.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roll: Option<f32>,
     /// Image width in pixels (default 1024).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub width: Option<u32>,
@@ -310,7 +318,14 @@ impl ViewParams {
             None => None,
         };
         Ok(ViewParams {
-            camera: CameraParams { position, eye_height: q.eye_height, yaw: q.yaw, pitch: q.pitch, fov: q.fov },
+            camera: CameraParams {
+                position,
+                eye_height: q.eye_height,
+                yaw: q.yaw,
+                pitch: q.pitch,
+                fov: q.fov,
+                roll: q.roll,
+            },
             width: q.width,
             height: q.height,
             format: q.format,
@@ -333,6 +348,7 @@ impl ViewParams {
             yaw: self.camera.yaw,
             pitch: self.camera.pitch,
             fov: self.camera.fov,
+            roll: self.camera.roll,
             width: self.width,
             height: self.height,
             format: self.format.clone(),
@@ -451,6 +467,7 @@ impl ViewRequest {
                 yaw: Some(c.yaw),
                 pitch: Some(c.pitch),
                 fov: Some(c.fov),
+                roll: Some(c.roll),
             },
             width: Some(self.width),
             height: Some(self.height),
