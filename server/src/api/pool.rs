@@ -6,6 +6,7 @@
 
 use super::metrics::{KindLabels, Metrics};
 use super::view::ViewRequest;
+use crate::render::renderer::ViewState;
 use crate::render::{Gpu, RenderError, Renderer};
 use crate::scene::Scene;
 use axum::body::Bytes;
@@ -78,13 +79,15 @@ pub type FrameReceiver = oneshot::Receiver<Result<Frame, PoolError>>;
 struct Job {
     view: ViewRequest,
     kind: FrameKind,
+    /// The WebSocket session the job belongs to; its frames continue one animated view.
+    session: Option<u64>,
     reply: oneshot::Sender<Result<Frame, PoolError>>,
 }
 
 impl Job {
-    fn new(view: ViewRequest, kind: FrameKind) -> (Job, FrameReceiver) {
+    fn new(view: ViewRequest, kind: FrameKind, session: Option<u64>) -> (Job, FrameReceiver) {
         let (reply, receiver) = oneshot::channel();
-        (Job { view, kind, reply }, receiver)
+        (Job { view, kind, session, reply }, receiver)
     }
 }
 
@@ -100,6 +103,8 @@ struct Queue {
     ready: VecDeque<Lane>,
     rest: VecDeque<Job>,
     sessions: HashMap<u64, Job>,
+    /// Sessions that ended since the worker last looked; their view states are dropped.
+    left: Vec<u64>,
     next_session: u64,
     closed: bool,
 }
@@ -149,13 +154,14 @@ impl Shared {
         self.wake.notify_one();
     }
 
-    /// Blocks until a job is available; `None` once the pool is closed and drained.
-    fn next_job(&self) -> Option<Job> {
+    /// Blocks until a job is available; `None` once the pool is closed and drained. Also
+    /// returns the sessions that ended meanwhile.
+    fn next_job(&self) -> Option<(Job, Vec<u64>)> {
         let mut queue = self.lock();
         loop {
             if let Some(job) = queue.pop() {
                 self.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
-                return Some(job);
+                return Some((job, std::mem::take(&mut queue.left)));
             }
             if queue.closed {
                 return None;
@@ -215,7 +221,7 @@ impl RenderPool {
             let retry_after_s = u32::try_from(estimate_ms.div_ceil(1000).max(1)).unwrap_or(u32::MAX);
             return Err(PoolError::Full { depth, retry_after_s });
         }
-        let (job, receiver) = Job::new(view, FrameKind::Rest);
+        let (job, receiver) = Job::new(view, FrameKind::Rest, None);
         if queue.rest.is_empty() {
             queue.ready.push_back(Lane::Rest);
         }
@@ -260,14 +266,25 @@ impl Drop for RenderPool {
     }
 }
 
+/// The worker loop. REST views render without history (deterministic); each WebSocket session
+/// keeps a [`ViewState`] so its hatching follows the camera from frame to frame (thesis
+/// eq. 6.2), dropped when the session ends.
 fn work(shared: &Shared, renderer: &Renderer, runtime: &Handle) {
-    while let Some(Job { view, kind, reply }) = shared.next_job() {
+    let mut views: HashMap<u64, ViewState> = HashMap::new();
+    while let Some((Job { view, kind, session, reply }, left)) = shared.next_job() {
+        for id in left {
+            views.remove(&id);
+        }
         if reply.is_closed() {
             continue; // the client left while the job waited
         }
         let started = Instant::now();
-        let rendered = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            renderer.render(&view.camera, &view.style, view.width, view.height)
+        let rendered = std::panic::catch_unwind(AssertUnwindSafe(|| match session {
+            Some(id) => {
+                let state = views.entry(id).or_insert_with(|| renderer.new_view_state());
+                renderer.render_view(state, &view.camera, &view.style, view.width, view.height, false).map(|f| f.image)
+            }
+            None => renderer.render(&view.camera, &view.style, view.width, view.height),
         }));
         let elapsed = started.elapsed();
         let render_ms = elapsed.as_secs_f32() * 1e3;
@@ -311,7 +328,7 @@ impl SessionLane {
         if queue.closed {
             return Err(PoolError::Closed);
         }
-        let (job, receiver) = Job::new(view, kind);
+        let (job, receiver) = Job::new(view, kind, Some(self.id));
         if queue.sessions.insert(self.id, job).is_none() {
             queue.ready.push_back(Lane::Session(self.id));
         }
@@ -324,7 +341,7 @@ impl SessionLane {
     pub fn replace(&self, view: ViewRequest, kind: FrameKind) -> Option<FrameReceiver> {
         let mut queue = self.shared.lock();
         let slot = queue.sessions.get_mut(&self.id)?;
-        let (job, receiver) = Job::new(view, kind);
+        let (job, receiver) = Job::new(view, kind, Some(self.id));
         *slot = job;
         Some(receiver)
     }
@@ -334,6 +351,7 @@ impl Drop for SessionLane {
     fn drop(&mut self) {
         let mut queue = self.shared.lock();
         queue.sessions.remove(&self.id);
+        queue.left.push(self.id);
         self.shared.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
     }
 }
