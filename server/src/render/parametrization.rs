@@ -134,39 +134,24 @@ mod tests {
         // Camera with a 60° vertical field of view, 768 px high; HLP centre 20 m away, r = 2 m.
         // A pixel 100 px right of the centre's projection lies 100·(2·20·tan 30°/768) = 3.0070 m
         // away at that depth = 1.5035 radii → 1.5035·(2/π) tiles = 0.9572.
-        let o = hatch_offset(
-            Vec2::new(612.0, 384.0),
-            Vec2::new(512.0, 384.0),
-            20.0,
-            2.0,
-            30f32.to_radians().tan(),
-            768.0,
-            2.0,
-            0.0,
-        );
+        let offset = |x: f32, y: f32, roll: f32| {
+            hatch_offset(
+                Vec2::new(x, y),
+                Vec2::new(512.0, 384.0),
+                20.0,
+                2.0,
+                30f32.to_radians().tan(),
+                768.0,
+                2.0,
+                roll,
+            )
+        };
+        let o = offset(612.0, 384.0, 0.0);
         assert!((o.x - 0.95716).abs() < 1e-4 && o.y.abs() < 1e-6, "{o}");
         // Pixels above the centre give positive v; a 90° roll turns u into −v.
-        let up = hatch_offset(
-            Vec2::new(512.0, 284.0),
-            Vec2::new(512.0, 384.0),
-            20.0,
-            2.0,
-            30f32.to_radians().tan(),
-            768.0,
-            2.0,
-            0.0,
-        );
+        let up = offset(512.0, 284.0, 0.0);
         assert!((up.y - 0.95716).abs() < 1e-4);
-        let rolled = hatch_offset(
-            Vec2::new(612.0, 384.0),
-            Vec2::new(512.0, 384.0),
-            20.0,
-            2.0,
-            30f32.to_radians().tan(),
-            768.0,
-            2.0,
-            PI / 2.0,
-        );
+        let rolled = offset(612.0, 384.0, PI / 2.0);
         assert!(rolled.x.abs() < 1e-4 && (rolled.y + 0.95716).abs() < 1e-4, "{rolled}");
     }
 
