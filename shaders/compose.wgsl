@@ -1,6 +1,10 @@
 // Post pass 2: isolated-pixel removal (thesis eq. 5.2), tone blur, hatching with a tonal art
 // map on the hybrid parametrization (thesis 6.1), stylized silhouettes with a silhouette art
-// map (thesis 5.2), composited on paper.
+// map (thesis 5.2), composited on paper or, with colour (thesis 6.2, 8.2.6–8.2.7), on the
+// shaded surface colour and the sky. Every pixel uses the style of its layer (thesis 8.2.8); a
+// compose pass draws the style slots of its art-map group (`styles.frame_info.x`) and discards
+// the rest. Data layers (thesis 9.3) adjust tone, TAM, SAM channel, silhouettes and colour
+// through `data_common.wgsl` (binding 11).
 
 @group(0) @binding(1) var contour_tex: texture_2d<f32>;
 @group(0) @binding(2) var depth_tex: texture_2d<f32>;
@@ -14,6 +18,7 @@
 @group(0) @binding(10) var sam_sampler: sampler;
 
 const MAX_SUPPORT: i32 = 16;
+const LUMA: vec3<f32> = vec3<f32>(0.2126, 0.7152, 0.0722);
 
 // Thesis eq. 5.2: p0 <- p0 * sat(sum_i ceil(sat(p_i - t')) - 2), the sum running over the 3x3
 // neighbourhood including the centre, so a contour pixel survives only with >= 2 contour
@@ -57,6 +62,7 @@ fn blurred_tone(p: vec2<i32>, size: vec2<u32>) -> f32 {
 // ink coverage 0..1.
 fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
     let levels = i32(post.tone2.z);
+    let base = data_tam_layer(data_at(p), levels);
     let coords = textureLoad(hatch_tex, p, 0).xy;
     let tiles_per_px = textureLoad(normal_tex, p, 0).w;
     let lod = log2(max(tiles_per_px * post.tone2.w, 1e-4));
@@ -67,9 +73,9 @@ fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
     let f = position - floor(position);
     var a = 1.0;
     if lo >= 0 {
-        a = textureSampleLevel(tam, tam_sampler, coords, min(lo, levels - 1), lod).r;
+        a = textureSampleLevel(tam, tam_sampler, coords, base + min(lo, levels - 1), lod).r;
     }
-    let b = textureSampleLevel(tam, tam_sampler, coords, clamp(lo + 1, 0, levels - 1), lod).r;
+    let b = textureSampleLevel(tam, tam_sampler, coords, base + clamp(lo + 1, 0, levels - 1), lod).r;
     return (1.0 - mix(a, b, f)) * post.hatch.x;
 }
 
@@ -107,19 +113,61 @@ fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     let u = post.silhouette.y * alpha * radius_px;
     let sam_size = vec2<f32>(textureDimensions(sam));
     let texel = textureSampleLevel(sam, sam_sampler, vec2<f32>(u / sam_size.x, (f32(v) + 0.5) / f32(support + 1)), 0.0);
-    let channel = clamp(i32((1.0 - t) * 4.0), 0, 3);
-    return texel[channel] * post.silhouette.z;
+    let channel = data_sam_channel(data_at(p), clamp(i32((1.0 - t) * 4.0), 0, 3));
+    return texel[channel] * post.silhouette.z * data_silhouettes(data_at(p));
+}
+
+// Linear RGB to the sRGB encoding of the output (the paper, ink and sky colours are sRGB).
+fn encode_srgb(c: vec3<f32>) -> vec3<f32> {
+    let x = saturate(c);
+    return select(1.055 * pow(x, vec3<f32>(1.0 / 2.4)) - 0.055, x * 12.92, x <= vec3<f32>(0.0031308));
+}
+
+// Thesis 6.2: the surface colour, linear RGB. The albedo (already blended towards the
+// material's average colour in the G-buffer pass) with its saturation, lit by Lambert light
+// with ambient from the HLP-blended normal (thesis 6.1.3); optionally banded by a 1D toon ramp
+// of `toon_levels` flat bands (Campos et al. 2004) and blended towards Gooch cool-to-warm
+// shading, k_cool = (0, 0, 0.4) + 0.2·k_d, k_warm = (0.4, 0.4, 0) + 0.6·k_d (Gooch et al. 1998).
+fn surface_color(p: vec2<i32>) -> vec3<f32> {
+    let albedo = textureLoad(albedo_tex, p, 0).rgb;
+    let c = max(mix(vec3<f32>(dot(albedo, LUMA)), albedo, post.color.y), vec3<f32>(0.0));
+    let ndl = dot(normalize(textureLoad(normal_tex, p, 0).xyz), post.light.xyz);
+    let smooth_light = post.light.w + (1.0 - post.light.w) * max(ndl, 0.0);
+    let bands = post.color2.x;
+    let ramp = min(floor(smooth_light * bands), bands - 1.0) / (bands - 1.0);
+    let lit = c * mix(smooth_light, ramp, post.color.w);
+    let k = 0.5 * (1.0 + ndl);
+    let gooch = mix(vec3<f32>(0.0, 0.0, 0.4) + 0.2 * c, vec3<f32>(0.4, 0.4, 0.0) + 0.6 * c, k);
+    return mix(lit, gooch, post.color.z);
+}
+
+// The sky behind the landscape (sRGB): from the horizon colour to the zenith colour with the
+// elevation of the pixel's view ray (straight down in a plan view: the horizon colour).
+fn sky_color(frag: vec2<f32>, size: vec2<u32>) -> vec3<f32> {
+    let ndc = vec2<f32>(frag.x / f32(size.x) * 2.0 - 1.0, 1.0 - frag.y / f32(size.y) * 2.0);
+    let z = styles.ray.x + ndc.x * styles.ray.y + ndc.y * styles.ray.z;
+    let len = length(vec3<f32>(1.0, ndc.x * styles.ray.w, ndc.y * styles.frame_info.y));
+    return mix(post.sky_horizon.rgb, post.sky_zenith.rgb, sqrt(saturate(z / len)));
 }
 
 @fragment
 fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(frag.xy);
+    use_style(textureLoad(id_tex, p, 0).x);
+    if u32(post.silhouette.w) != u32(styles.frame_info.x) {
+        discard;
+    }
     let size = textureDimensions(contour_tex);
     var ink = contour_ink(p, size) * post.tone.w;
+    var base: vec3<f32>;
     if textureLoad(albedo_tex, p, 0).a > 0.5 {
-        let t = blurred_tone(p, size);
-        ink = max(ink, hatch_ink(p, t));
+        let t = data_tone(data_at(p), blurred_tone(p, size));
+        // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
+        ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
         ink = max(ink, silhouette_ink(p, t, size));
+        base = mix(post.paper.rgb, encode_srgb(surface_color(p)), post.color.x);
+    } else {
+        base = mix(post.paper.rgb, sky_color(frag.xy, size), post.color2.y);
     }
-    return vec4<f32>(mix(post.paper.rgb, post.ink.rgb, ink), 1.0);
+    return vec4<f32>(data_tint(data_at(p), mix(base, post.ink.rgb, ink)), 1.0);
 }

@@ -1,9 +1,10 @@
 // Post pass 1: image-space contours from linear depth (thesis 5.1) and the tone image
-// (thesis 6.1.3).
+// (thesis 6.1.3), each pixel with the style of its layer.
 
 @group(0) @binding(1) var depth_tex: texture_2d<f32>;
 @group(0) @binding(2) var albedo_tex: texture_2d<f32>;
 @group(0) @binding(3) var normal_tex: texture_2d<f32>;
+@group(0) @binding(4) var id_tex: texture_2d<u32>;
 
 // Thesis eq. 5.1: p0 = max_i sat((d_i - d0) c - t) over the 3x3 neighbourhood, with signed
 // differences so that contours are one pixel wide and lie on the nearer surface. Depths are
@@ -42,5 +43,8 @@ fn tone(p: vec2<i32>) -> f32 {
 @fragment
 fn fs_contour(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(frag.xy);
+    // Each pixel in the style of its layer (thesis 8.2.8): contours lie on the nearer surface,
+    // so an edge between two layers takes the style of the one in front.
+    use_style(textureLoad(id_tex, p, 0).x);
     return vec4<f32>(contour(p), tone(p), 0.0, 1.0);
 }

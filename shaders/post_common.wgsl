@@ -1,4 +1,6 @@
-// Style parameters shared by the post-processing passes (mirrors `render::style::PostParams`).
+// Style parameters shared by the post-processing passes (mirrors `render::style::PostParams`
+// and `PostUniform`): one `Post` per style slot, picked per pixel by the layer code of the ID
+// buffer (thesis 8.2.8: every layer in its own style).
 
 struct Post {
     // x: contour scale c, y: contour threshold t (thesis eq. 5.1),
@@ -10,15 +12,46 @@ struct Post {
     tone: vec4<f32>,
     // x: tone bands (0 = continuous), y: tone blur radius (px), z: TAM tone levels, w: TAM size
     tone2: vec4<f32>,
-    // x: silhouette support (px), y: SAM stretch c (eq. 5.5), z: silhouette strength
+    // x: silhouette support (px), y: SAM stretch c (eq. 5.5), z: silhouette strength,
+    // w: art-map group (the compose pass that draws this slot)
     silhouette: vec4<f32>,
-    // x: hatch strength, y: cos(roll), z: sin(roll)
+    // x: hatch strength, y: cos(roll), z: sin(roll), w: hatch brightness (tone lift)
     hatch: vec4<f32>,
+    // x: colour amount, y: saturation, z: Gooch blend, w: toon blend
+    color: vec4<f32>,
+    // x: toon bands, y: sky amount, z: TAM index (the data pass's default hatch pattern)
+    color2: vec4<f32>,
     ink: vec4<f32>,
     paper: vec4<f32>,
+    sky_zenith: vec4<f32>,
+    sky_horizon: vec4<f32>,
 };
 
-@group(0) @binding(0) var<uniform> post: Post;
+const STYLE_SLOTS: u32 = 16u;
+
+struct Styles {
+    // World z of the view ray through NDC (x, y): ray.x + x·ray.y + y·ray.z; ray.w = tan(fov/2)·aspect
+    ray: vec4<f32>,
+    // x: art-map group drawn by this compose pass, y: tan(fov/2) (0 for a plan view)
+    frame_info: vec4<f32>,
+    slots: array<Post, STYLE_SLOTS>,
+};
+
+@group(0) @binding(0) var<uniform> styles: Styles;
+
+// The style of the pixel being shaded; set by each fragment entry point with `use_style`.
+var<private> post: Post;
+
+// Style slot of an object ID: its layer code (top 8 bits; 0 background, 1 terrain, i + 2
+// vegetation layer i), or the base slot 0 beyond the slots.
+fn style_slot(object_id: u32) -> u32 {
+    let code = object_id >> 24u;
+    return select(0u, code, code < STYLE_SLOTS);
+}
+
+fn use_style(object_id: u32) {
+    post = styles.slots[style_slot(object_id)];
+}
 
 fn clamp_coord(p: vec2<i32>, size: vec2<u32>) -> vec2<i32> {
     return clamp(p, vec2<i32>(0), vec2<i32>(size) - 1);

@@ -268,30 +268,37 @@ async fn bad_requests_get_json_errors_naming_the_parameter() {
 async fn a_view_request_round_trips_through_query_parameters() {
     let (scene, _) = loaded();
     let limits = Limits { max_width: 2048, max_height: 2048 };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let store = &landsketch::store::Store::open(dir.path()).expect("store");
     for body in [
         json!({}),
         json!({"camera": {"position": [205.25, 185.5]}, "width": 160, "height": 120}),
         json!({"camera": {"position": [0, -1500, 3000], "yaw": 12.3, "pitch": -35, "fov": 45}, "format": "jpeg"}),
         json!({"camera": {"roll": -12.5}}),
+        json!({"camera": {"mode": "plan", "center": [10.5, -20], "width": 500, "yaw": 30}, "width": 64}),
+        json!({"camera": {"mode": "plan"}}),
         json!({"camera": {"eye_height": 12}, "format": "jpg", "quality": 55, "style": {"contour_threshold": 0.35, "ink": [0.1, 0.2, 0.3]}}),
     ] {
         let params: ViewParams = serde_json::from_value(body.clone()).expect("body");
-        let view = params.normalize(scene, limits, Source::Body).expect("valid view");
+        let view = params.normalize(scene, store, limits, Source::Body).expect("valid view");
         // The JSON body as query parameters is the same view ...
         let from_query = ViewParams::from_query(&params.to_query()).expect("query");
-        assert_eq!(from_query.normalize(scene, limits, Source::Query).expect("valid"), view, "{body}");
+        assert_eq!(from_query.normalize(scene, store, limits, Source::Query).expect("valid"), view, "{body}");
         // ... and so is the normalized view's own link and body.
         let link = view.to_params().to_query();
-        let again = ViewParams::from_query(&link).expect("link").normalize(scene, limits, Source::Query);
+        let again = ViewParams::from_query(&link).expect("link").normalize(scene, store, limits, Source::Query);
         assert_eq!(again.expect("valid"), view, "{link}");
         let body = serde_json::to_value(view.to_params()).expect("serializes");
         let again: ViewParams = serde_json::from_value(body).expect("body");
-        assert_eq!(again.normalize(scene, limits, Source::Body).expect("valid"), view);
-        assert_eq!(view.etag("scene"), again.normalize(scene, limits, Source::Body).expect("valid").etag("scene"));
+        assert_eq!(again.normalize(scene, store, limits, Source::Body).expect("valid"), view);
+        assert_eq!(
+            view.etag("scene"),
+            again.normalize(scene, store, limits, Source::Body).expect("valid").etag("scene")
+        );
     }
     let rolled: ViewParams = serde_json::from_value(json!({"camera": {"roll": 190}})).expect("body");
-    assert!(rolled.normalize(scene, limits, Source::Body).is_err(), "roll beyond 180 degrees accepted");
-    let default = ViewParams::default().normalize(scene, limits, Source::Body).expect("default");
+    assert!(rolled.normalize(scene, store, limits, Source::Body).is_err(), "roll beyond 180 degrees accepted");
+    let default = ViewParams::default().normalize(scene, store, limits, Source::Body).expect("default");
     assert_eq!(default.camera, scene.default_camera);
     assert_eq!((default.width, default.height, default.format), (1024, 768, ImageFormat::Png));
 }
@@ -642,4 +649,97 @@ async fn idle_sessions_are_closed_and_sessions_are_limited() {
     }
     let mut again = connect(server, "width=32&height=24").await;
     assert!(matches!(receive(&mut again).await, Incoming::Json(hello) if hello["type"] == "hello"));
+}
+
+#[tokio::test]
+async fn presets_schema_and_layer_styles_over_rest() {
+    let server = TestServer::shared();
+    // The scene lists the presets and the style schema with ranges.
+    let scene = json_of(get(&server.url("/api/scene")).await).await;
+    let presets: Vec<&str> =
+        scene["presets"].as_array().expect("presets").iter().filter_map(|p| p["name"].as_str()).collect();
+    assert_eq!(presets.len(), landsketch::render::presets::PRESETS.len());
+    assert!(presets.contains(&"photorealism") && presets.contains(&"childrens_book"), "{presets:?}");
+    assert_eq!(scene["presets"][0]["style"]["photorealism"], 1.0);
+    let schema = scene["style_schema"].as_array().expect("schema");
+    let photo = schema.iter().find(|f| f["name"] == "photorealism").expect("photorealism field");
+    assert_eq!(
+        (photo["min"].as_f64(), photo["max"].as_f64(), photo["default"].as_f64()),
+        (Some(0.0), Some(1.0), Some(0.0))
+    );
+    assert_eq!(schema.len(), Style::default().to_json().len());
+
+    // A preset renders; style fields merge over it; a view link keeps it.
+    let photo = get(&server.url(&format!("/api/render?{VIEW}&preset=photorealism"))).await;
+    assert_eq!(photo.status(), StatusCode::OK);
+    let photo = photo.bytes().await.expect("image");
+    let sketch = get(&server.url(&format!("/api/render?{VIEW}"))).await.bytes().await.expect("image");
+    assert_ne!(photo, sketch);
+    let layers = json!({"existing": {"preset": "photorealism"}, "terrain": {"hatch_map": 1}});
+    let body = json!({
+        "camera": {"position": [205, 185], "yaw": 268, "pitch": -1.5}, "width": 160, "height": 120,
+        "preset": "full_npr", "style": {"ambient": 0.4}, "layer_styles": layers,
+    });
+    let posted = post(&server.url("/api/render"), body.to_string()).await;
+    assert_eq!(posted.status(), StatusCode::OK);
+    let link = posted.headers()["content-location"].to_str().expect("link").to_owned();
+    assert!(link.contains("layer_styles"), "{link}");
+    let mixed = posted.bytes().await.expect("image");
+    assert_ne!(mixed, sketch);
+    assert_eq!(get(&server.url(&link)).await.bytes().await.expect("image"), mixed, "{link}");
+
+    // Unknown presets are 404s naming them; bad values 422s naming the field.
+    let render = |query: &str| server.url(&format!("/api/render?{VIEW}&{query}"));
+    let body = assert_error(get(&render("preset=winter")).await, 404, "not_found", None).await;
+    let message = body["error"]["message"].as_str().unwrap_or_default();
+    assert!(message.contains("winter") && message.contains("van_gogh"), "{message}");
+    for (query, status, code, parameter) in [
+        ("preset=full_npr&style=%7B%22photorealism%22%3A2%7D", 422, "invalid_parameter", Some("style.photorealism")),
+        ("layer_styles=%7B%22meadow%22%3A%7B%7D%7D", 422, "invalid_parameter", Some("layer_styles.meadow")),
+        (
+            "layer_styles=%7B%22planned%22%3A%7B%22color%22%3A5%7D%7D",
+            422,
+            "invalid_parameter",
+            Some("layer_styles.planned.color"),
+        ),
+        ("layer_styles=%7B%22planned%22%3A%7B%22preset%22%3A%22winter%22%7D%7D", 404, "not_found", None),
+        ("layer_styles=%7Bnot-json", 400, "bad_request", Some("layer_styles")),
+    ] {
+        let body = assert_error(get(&render(query)).await, status, code, parameter).await;
+        let message = body["error"]["message"].as_str().unwrap_or_default().to_owned();
+        if query.contains("photorealism") {
+            assert!(message.contains("0..=1"), "{message}");
+        }
+        if query.contains("meadow") {
+            assert!(message.contains("existing") && message.contains("terrain"), "{message}");
+        }
+    }
+}
+
+#[tokio::test]
+async fn websocket_style_messages_take_presets_and_layer_styles() {
+    let server = TestServer::shared();
+    let mut socket = connect(server, "width=96&height=72&preset=minimalistic").await;
+    let (_, _, _, first) = next_frame(&mut socket).await;
+    send(
+        &mut socket,
+        json!({"type": "style", "preset": "photorealism", "layer_styles": {"planned": {"preset": "full_npr"}}}),
+    )
+    .await;
+    let mut still = Vec::new();
+    for _ in 0..10 {
+        let (_, _, header, bytes) = next_frame(&mut socket).await;
+        if header.still && header.seq == 1 {
+            still = bytes;
+            break;
+        }
+    }
+    assert!(!still.is_empty() && still != first, "no new still frame after the style message");
+    send(&mut socket, json!({"type": "style", "layer_styles": {"meadow": {}}})).await;
+    let Incoming::Json(error) = receive(&mut socket).await else { panic!("an error message") };
+    assert_eq!(
+        (error["type"].as_str(), error["parameter"].as_str()),
+        (Some("error"), Some("layer_styles.meadow")),
+        "{error}"
+    );
 }

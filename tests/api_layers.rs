@@ -346,3 +346,61 @@ async fn writes_need_the_admin_token() {
     let deleted = client().delete(&location).bearer_auth("s3cret").send().await.expect("DELETE");
     assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
 }
+
+/// POSTs a render body; returns the response.
+async fn render(server: &TestServer, body: Value) -> reqwest::Response {
+    let request = client().post(server.url("/api/render")).header("content-type", "application/json");
+    request.body(body.to_string()).send().await.expect("POST /api/render")
+}
+
+#[tokio::test]
+async fn renders_show_data_layers_in_plan_view_with_table_9_1_warnings() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let meta = json_of(upload(&server, STEP_1, scene_tiff(0.0)).await).await;
+    assert_eq!(upload(&server, STEP_2, scene_tiff(10.0)).await.status(), StatusCode::OK);
+    let id = meta["id"].as_str().expect("id").to_string();
+    let camera = serde_json::json!({"mode": "plan", "center": [0, 0], "width": 2000});
+    let colour = serde_json::json!([{"layer": id, "target": "color", "colormap": "magma"}]);
+
+    let plain = render(&server, serde_json::json!({"camera": camera, "width": 64, "height": 48})).await;
+    assert_eq!(plain.status(), StatusCode::OK);
+    let plain = image::load_from_memory(&plain.bytes().await.expect("body")).expect("PNG").to_rgba8();
+    let body = serde_json::json!({"camera": camera, "width": 64, "height": 48, "mappings": colour,
+        "time": "2024-06-01T12:00:00Z"});
+    let coloured = render(&server, body.clone()).await;
+    assert_eq!(coloured.status(), StatusCode::OK);
+    assert!(coloured.headers().get("warning").is_none(), "colour suits scalars");
+    let link = coloured.headers()["content-location"].to_str().expect("ASCII").to_string();
+    assert!(link.contains("mode=plan") && link.contains("mappings=") && link.contains("time="), "{link}");
+    let bytes = coloured.bytes().await.expect("body");
+    let image = image::load_from_memory(&bytes).expect("PNG").to_rgba8();
+    let changed = image.pixels().zip(plain.pixels()).filter(|(a, b)| a != b).count();
+    assert!(changed > image.pixels().len() / 2, "the plan view is coloured ({changed} pixels changed)");
+    // The query form of the view renders the same bytes.
+    let again = get(&server.url(&link)).await;
+    assert_eq!(again.bytes().await.expect("body"), bytes);
+
+    // Table 9.1: a scalar as silhouette style is unsuitable → a Warning header, still an image.
+    let body = serde_json::json!({"camera": camera, "width": 32, "height": 24,
+        "mappings": [{"layer": id, "target": "silhouette_style"}], "time": "2030-01-01"});
+    let warned = render(&server, body).await;
+    assert_eq!(warned.status(), StatusCode::OK);
+    let warnings: Vec<String> =
+        warned.headers().get_all("warning").iter().map(|v| v.to_str().expect("ASCII").to_string()).collect();
+    assert!(warnings.iter().any(|w| w.contains("not quantifiable") && w.contains("Table 9.1")), "{warnings:?}");
+    assert!(warnings.iter().any(|w| w.contains("after the last") && w.contains("clamped")), "{warnings:?}");
+
+    // Unknown layers are 404s; bad times, abstraction and a fourth mapping 422s.
+    let unknown = serde_json::json!({"mappings": [{"layer": "nope", "target": "color"}]});
+    assert_error(render(&server, unknown).await, 404, "not_found", None).await;
+    let bad_time = serde_json::json!({"mappings": colour, "time": "yesterday"});
+    assert_error(render(&server, bad_time).await, 422, "invalid_parameter", Some("time")).await;
+    let abstraction = serde_json::json!({"mappings": [{"layer": id, "target": "abstraction"}]});
+    assert_error(render(&server, abstraction).await, 422, "invalid_parameter", Some("mappings")).await;
+    let four = serde_json::json!({"mappings": [colour[0], colour[0], colour[0], colour[0]]});
+    let message = assert_error(render(&server, four).await, 422, "invalid_parameter", Some("mappings")).await;
+    assert!(message.contains("at most 3"), "{message}");
+    let plan_pitch = serde_json::json!({"camera": {"mode": "plan", "pitch": -30}});
+    assert_error(render(&server, plan_pitch).await, 422, "invalid_parameter", Some("camera.pitch")).await;
+}

@@ -5,19 +5,35 @@
 mod common;
 
 use common::{assert_matches_reference, fraction, gpu, luminance, trees_on_a_plain};
+use landsketch::prep::lod::{LodLevel, LodSettings};
 use landsketch::render::coherence::{camera_path, flicker};
 use landsketch::render::style::HatchSpace;
-use landsketch::render::{RenderError, Renderer, Style};
+use landsketch::render::{RenderError, RenderOptions, Renderer, Style};
+use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
 use std::path::PathBuf;
 
 const SIZE: (u32, u32) = (192, 192);
 
+/// The full model at every distance: these tests are about the NPR passes, not the levels of
+/// detail (`tests/lod.rs`).
+fn full_detail(scene: &Scene) -> Renderer {
+    let lod = LodSettings { force: Some(LodLevel::Full), ..LodSettings::default() };
+    Renderer::with_options(gpu(), scene, &RenderOptions { lod, ..RenderOptions::default() }).unwrap()
+}
+
 /// A close view of one tree filling most of the frame.
 fn close_up() -> (Renderer, Camera) {
     let scene = trees_on_a_plain(&[[0.0, 0.0]]);
-    let renderer = Renderer::new(gpu(), &scene);
-    let camera = Camera { position: [0.0, -16.0, 105.5], yaw: 0.0, pitch: 8.0, fov: 50.0, roll: 0.0 };
+    let renderer = full_detail(&scene);
+    let camera = Camera {
+        position: [0.0, -16.0, 105.5],
+        yaw: 0.0,
+        pitch: 8.0,
+        fov: 50.0,
+        roll: 0.0,
+        projection: Default::default(),
+    };
     (renderer, camera)
 }
 
@@ -115,7 +131,7 @@ fn every_tonal_art_map_at_three_tones() {
 #[test]
 fn hybrid_hatching_flickers_less_than_image_space_hatching() {
     let scene = trees_on_a_plain(&[[-6.0, 0.0], [5.0, 4.0], [0.0, 12.0], [-12.0, 14.0], [10.0, 18.0]]);
-    let renderer = Renderer::new(gpu(), &scene);
+    let renderer = full_detail(&scene);
     let path = camera_path(&scene.default_camera, 3);
     let base = Style { silhouette_strength: 0.0, ..Style::default() };
     let hybrid =

@@ -16,7 +16,7 @@ fn sample() -> &'static (Scene, Renderer) {
     static SAMPLE: OnceLock<(Scene, Renderer)> = OnceLock::new();
     SAMPLE.get_or_init(|| {
         let scene = Scene::load(Path::new("data/boulder/scene.toml")).expect("sample scene");
-        let renderer = Renderer::new(gpu(), &scene);
+        let renderer = Renderer::new(gpu(), &scene).unwrap();
         (scene, renderer)
     })
 }
@@ -29,7 +29,7 @@ fn paper() -> [u8; 3] {
 #[test]
 fn sample_view_matches_reference_and_looks_like_a_sketch() {
     let (scene, renderer) = sample();
-    let image = renderer.render(&scene.default_camera, &Style::default(), 512, 384).unwrap();
+    let image = renderer.render(&scene.default_camera, Style::default(), 512, 384).unwrap();
     assert_matches_reference(&image, Path::new("tests/reference/sample_view.png"), 0.02);
 
     let ink = fraction(&image, |l| l < 0.5);
@@ -70,9 +70,9 @@ fn tree_on_a_plain() -> Scene {
 #[test]
 fn a_tree_on_a_plain_is_outlined_on_paper() {
     let scene = tree_on_a_plain();
-    let renderer = Renderer::new(gpu(), &scene);
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
     let (w, h) = (256, 192);
-    let image = renderer.render(&scene.default_camera, &Style::default(), w, h).unwrap();
+    let image = renderer.render(&scene.default_camera, Style::default(), w, h).unwrap();
     assert_matches_reference(&image, Path::new("tests/reference/tree_on_plain.png"), 0.02);
 
     // Sky and the sunlit flat ground far from the tree are plain paper.
@@ -94,7 +94,7 @@ fn a_tree_on_a_plain_is_outlined_on_paper() {
 #[test]
 fn isolated_pixel_removal_only_removes_ink() {
     let scene = tree_on_a_plain();
-    let renderer = Renderer::new(gpu(), &scene);
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
     let hatchless = Style { hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
     let with = renderer.render(&scene.default_camera, &hatchless, 256, 192).unwrap();
     let without = renderer
@@ -111,8 +111,8 @@ fn isolated_pixel_removal_only_removes_ink() {
 fn bad_sizes_and_styles_are_errors() {
     let (scene, renderer) = sample();
     let cam = scene.default_camera;
-    assert!(matches!(renderer.render(&cam, &Style::default(), 0, 10), Err(RenderError::Size { .. })));
-    assert!(matches!(renderer.render(&cam, &Style::default(), 100_000, 10), Err(RenderError::Size { .. })));
+    assert!(matches!(renderer.render(&cam, Style::default(), 0, 10), Err(RenderError::Size { .. })));
+    assert!(matches!(renderer.render(&cam, Style::default(), 100_000, 10), Err(RenderError::Size { .. })));
     let bad = Style { contour_threshold: -1.0, ..Style::default() };
     let err = renderer.render(&cam, &bad, 64, 64).unwrap_err().to_string();
     assert!(err.contains("contour_threshold"), "{err}");

@@ -7,6 +7,7 @@
 //! reprojection onto the scene, colour maps, legends, mappings) kept by [`store`].
 
 pub mod api;
+pub mod bench;
 pub mod fields;
 pub mod gis;
 pub mod prep;

@@ -3,10 +3,19 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
+use landsketch::api::data::{DataRequest, LayerCache};
+use landsketch::api::view::{CameraMode, CameraParams, Source};
 use landsketch::api::{Server, ServerConfig};
-use landsketch::render::{Gpu, Renderer, Style};
+use landsketch::fields::{self, ColorMapName, ColorMapSpec, FieldKind, Legend, LoadOptions, Lut, Mapping};
+use landsketch::gis::CrsDefinition;
+use landsketch::prep::cache::DiskCache;
+use landsketch::render::presets::PRESETS;
+use landsketch::render::projection::DataView;
+use landsketch::render::style::FrameStyle;
+use landsketch::render::{Gpu, RenderOptions, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
+use landsketch::store::Store;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tracing::info;
@@ -22,6 +31,8 @@ struct Cli {
 enum Command {
     /// Render one view of a scene to a PNG file.
     Render(RenderArgs),
+    /// Benchmark scenes of several sizes generated from the scene's rules (README, "Benchmark").
+    Bench(BenchArgs),
     /// Measure temporal coherence: render a smooth camera path (pan, dolly, orbit, roll) from
     /// the scene's default camera and print the motion-compensated flicker of the hybrid
     /// hatching next to plain image-space hatching with the same art map and tone.
@@ -44,6 +55,8 @@ enum Command {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        cache: CacheArgs,
     },
     /// Load a scene and print what it contains (terrain, species, layers, default camera).
     Info {
@@ -53,6 +66,114 @@ enum Command {
     },
     /// Serve rendered views over HTTP and WebSocket (README, "Server").
     Serve(ServerConfig),
+    /// List the style presets with one line each, or the style fields with their ranges.
+    Presets {
+        /// Print the style schema (every field with its kind, default, range and meaning).
+        #[arg(long)]
+        schema: bool,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write the legend of a data file (GeoTIFF, ASCII grid, NetCDF) under a colour map: a PNG
+    /// and its JSON description next to it (same name, `.json`).
+    Legend(LegendArgs),
+}
+
+#[derive(Args)]
+struct LegendArgs {
+    /// The data file.
+    file: PathBuf,
+    /// `scalar` or `label`.
+    #[arg(long, default_value = "scalar")]
+    kind: String,
+    /// Colour map (viridis, magma, rdylbu, tableau10, file, …); default by kind.
+    #[arg(long)]
+    colormap: Option<String>,
+    /// Values at the two ends of the colour map, "LO,HI"; default the data's min and max.
+    #[arg(long, allow_hyphen_values = true, value_name = "LO,HI")]
+    range: Option<String>,
+    /// Opacity 0..1.
+    #[arg(long, default_value_t = 1.0)]
+    opacity: f32,
+    /// Run the colour map backwards.
+    #[arg(long)]
+    reverse: bool,
+    /// Title (default: the file name).
+    #[arg(long)]
+    title: Option<String>,
+    /// Units shown in the title (default: the file's, if any).
+    #[arg(long)]
+    units: Option<String>,
+    /// NetCDF variable.
+    #[arg(long)]
+    variable: Option<String>,
+    /// CRS of a file without one (EPSG:<code> or a PROJ.4 string).
+    #[arg(long)]
+    crs: Option<String>,
+    /// Output PNG; the JSON goes next to it.
+    #[arg(long, default_value = "legend.png")]
+    out: PathBuf,
+}
+
+/// Where preprocessing results (HLPs, baked billboards) are cached between runs.
+#[derive(Args)]
+struct CacheArgs {
+    /// Preprocessing cache directory [default: $XDG_CACHE_HOME/landsketch or ~/.cache/landsketch].
+    #[arg(long, env = "LANDSKETCH_CACHE_DIR")]
+    cache_dir: Option<PathBuf>,
+    /// Keep preprocessing results in memory only.
+    #[arg(long)]
+    no_cache: bool,
+}
+
+impl CacheArgs {
+    /// Renderer options with this disk cache.
+    fn render_options(&self) -> Result<RenderOptions> {
+        if self.no_cache {
+            return Ok(RenderOptions::default());
+        }
+        let dir = match &self.cache_dir {
+            Some(dir) => dir.clone(),
+            None => std::env::var_os("XDG_CACHE_HOME")
+                .map(PathBuf::from)
+                .or_else(|| std::env::var_os("HOME").map(|home| PathBuf::from(home).join(".cache")))
+                .context("no cache directory: set --cache-dir, XDG_CACHE_HOME or HOME, or pass --no-cache")?
+                .join("landsketch"),
+        };
+        let cache = DiskCache::open(&dir).with_context(|| format!("cannot open cache directory {}", dir.display()))?;
+        Ok(RenderOptions { cache: Some(Arc::new(cache)), ..RenderOptions::default() })
+    }
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Scene file whose placement rules are scaled to each plant count.
+    #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+    scene: PathBuf,
+    /// Plant counts of the generated scenes.
+    #[arg(long, value_delimiter = ',', default_value = "100,1000,10000")]
+    plants: Vec<usize>,
+    /// Presets to measure.
+    #[arg(long, value_delimiter = ',', default_value = "photorealism,full_npr")]
+    styles: Vec<String>,
+    /// Frames measured per scene and style.
+    #[arg(long, default_value_t = 20)]
+    frames: usize,
+    /// Frame width in pixels.
+    #[arg(long, default_value_t = 1024)]
+    width: u32,
+    /// Frame height in pixels.
+    #[arg(long, default_value_t = 768)]
+    height: u32,
+    /// Metres the camera walks per frame.
+    #[arg(long, default_value_t = 0.5)]
+    step: f32,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    cache: CacheArgs,
 }
 
 #[derive(Args)]
@@ -87,9 +208,33 @@ struct RenderArgs {
     /// Rotation about the view direction in degrees (positive turns the picture counter-clockwise).
     #[arg(long, allow_hyphen_values = true)]
     roll: Option<f32>,
-    /// Style overrides: a JSON object or the path of a JSON file (see README, "Style").
+    /// Style preset to start from (`landsketch presets` lists them).
+    #[arg(long)]
+    preset: Option<String>,
+    /// Style overrides: a JSON object or the path of a JSON file (see README, "Style"); merged
+    /// over the preset.
     #[arg(long)]
     style: Option<String>,
+    /// A layer's own style, `NAME=JSON` or `NAME=FILE` (NAME `terrain` or a vegetation layer);
+    /// the fields merge over the frame's style, or over `"preset"` when the JSON names one.
+    /// Repeatable.
+    #[arg(long, value_name = "NAME=JSON|FILE")]
+    layer_style: Vec<String>,
+    /// Plan view instead of perspective: orthographic, top-down, centred on CX,CY and WIDTH
+    /// scene metres across; --yaw turns the heading that points up (0 north).
+    #[arg(long, value_name = "CX,CY,WIDTH", allow_hyphen_values = true, conflicts_with_all = ["pos", "pitch", "fov"])]
+    plan: Option<String>,
+    /// Layer store of the data layers named in --mappings (the server's --data-dir).
+    #[arg(long, env = "LANDSKETCH_DATA_DIR", default_value = "landsketch-data")]
+    data_dir: PathBuf,
+    /// Data-layer mappings: a JSON array as in the render API (README, "Data layers") or a file.
+    #[arg(long)]
+    mappings: Option<String>,
+    /// ISO 8601 time of the data layers.
+    #[arg(long)]
+    time: Option<String>,
+    #[command(flatten)]
+    cache: CacheArgs,
 }
 
 fn main() -> Result<()> {
@@ -102,9 +247,15 @@ fn main() -> Result<()> {
         .init();
     match Cli::parse().command {
         Command::Render(args) => render(&args),
+        Command::Bench(args) => bench(&args),
+        Command::Legend(args) => legend(&args),
         Command::Serve(config) => serve(config),
-        Command::Coherence { scene, width, height, steps, style, json } => {
-            coherence(&scene, width, height, steps, style.as_deref(), json)
+        Command::Coherence { scene, width, height, steps, style, json, cache } => {
+            coherence(&scene, width, height, steps, style.as_deref(), json, &cache)
+        }
+        Command::Presets { schema, json } => {
+            presets(schema, json);
+            Ok(())
         }
         Command::Info { scene } => {
             let scene = load_scene(&scene)?;
@@ -141,19 +292,81 @@ fn load_scene(path: &Path) -> Result<Scene> {
     Ok(scene)
 }
 
-fn parse_style(arg: Option<&str>) -> Result<Style> {
-    let Some(arg) = arg else { return Ok(Style::default()) };
+/// A JSON object given inline or as the path of a JSON file.
+fn json_object(arg: &str) -> Result<serde_json::Map<String, serde_json::Value>> {
     let text = if arg.trim_start().starts_with('{') {
         arg.to_owned()
     } else {
         std::fs::read_to_string(arg).with_context(|| format!("cannot read style file {arg}"))?
     };
-    let style: Style = serde_json::from_str(&text).context("invalid style JSON")?;
-    style.validate()?;
-    Ok(style)
+    serde_json::from_str(&text).with_context(|| format!("invalid style JSON (expected an object): {arg}"))
+}
+
+/// The style of `--preset` with the `--style` overrides merged over it.
+fn parse_style(preset: Option<&str>, arg: Option<&str>) -> Result<Style> {
+    let overrides = arg.map(json_object).transpose()?.unwrap_or_default();
+    Ok(Style::from_preset(preset, &overrides)?)
+}
+
+/// The frame's styles: `--preset`/`--style` and every `--layer-style NAME=JSON|FILE`.
+fn frame_style(args: &RenderArgs) -> Result<FrameStyle> {
+    let mut frame = FrameStyle::from(parse_style(args.preset.as_deref(), args.style.as_deref())?);
+    for arg in &args.layer_style {
+        let (name, json) = arg.split_once('=').with_context(|| format!("--layer-style {arg:?}: expected NAME=JSON"))?;
+        let style = frame.base.layer(&json_object(json)?).with_context(|| format!("--layer-style {name}"))?;
+        frame.layers.insert(name.to_owned(), style);
+    }
+    Ok(frame)
+}
+
+/// `landsketch presets`: the presets (name and description) or the style schema.
+fn presets(schema: bool, json: bool) {
+    match (schema, json) {
+        (false, false) => {
+            for p in PRESETS {
+                println!("{:<22} {}", p.name, p.description);
+            }
+        }
+        (false, true) => {
+            let list: Vec<_> = PRESETS
+                .iter()
+                .map(|p| serde_json::json!({"name": p.name, "description": p.description, "style": p.overrides()}))
+                .collect();
+            println!("{}", serde_json::Value::Array(list));
+        }
+        (true, false) => {
+            for f in Style::schema() {
+                let range = match (f.min, f.max) {
+                    (Some(lo), Some(hi)) => format!("{lo}..={hi}"),
+                    _ => String::new(),
+                };
+                println!("{:<26} {:<8} {:<22} {:<10} {}", f.name, f.kind, f.default.to_string(), range, f.doc);
+            }
+        }
+        (true, true) => println!("{}", serde_json::json!(Style::schema())),
+    }
 }
 
 fn camera(args: &RenderArgs, scene: &Scene) -> Result<Camera> {
+    if let Some(plan) = &args.plan {
+        let v: Vec<f32> = plan
+            .split(',')
+            .map(|s| s.trim().parse::<f32>())
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("--plan {plan:?}: expected CX,CY,WIDTH numbers"))?;
+        let [cx, cy, width] = v[..] else { bail!("--plan {plan:?}: expected CX,CY,WIDTH") };
+        let params = CameraParams {
+            mode: Some(CameraMode::Plan),
+            center: Some(vec![cx, cy]),
+            width: Some(width),
+            yaw: args.yaw,
+            roll: args.roll,
+            ..CameraParams::default()
+        };
+        let resolved =
+            params.resolve(&scene.default_camera, scene, Source::Body).map_err(|e| anyhow::anyhow!("--plan: {e}"))?;
+        return Ok(resolved.camera);
+    }
     let mut camera = scene.default_camera;
     if let Some(pos) = &args.pos {
         let v: Vec<f32> = pos
@@ -183,12 +396,20 @@ fn camera(args: &RenderArgs, scene: &Scene) -> Result<Camera> {
     Ok(camera)
 }
 
-fn coherence(scene: &Path, width: u32, height: u32, steps: usize, style: Option<&str>, json: bool) -> Result<()> {
+fn coherence(
+    scene: &Path,
+    width: u32,
+    height: u32,
+    steps: usize,
+    style: Option<&str>,
+    json: bool,
+    cache: &CacheArgs,
+) -> Result<()> {
     use landsketch::render::coherence::{camera_path, flicker};
     use landsketch::render::style::HatchSpace;
-    let base = parse_style(style)?;
+    let base = parse_style(None, style)?;
     let scene = load_scene(scene)?;
-    let renderer = Renderer::new(Arc::new(Gpu::new()?), &scene);
+    let renderer = Renderer::with_options(Arc::new(Gpu::new()?), &scene, &cache.render_options()?)?;
     let path = camera_path(&scene.default_camera, steps);
     let mut rows = Vec::new();
     for (name, space) in [("hybrid", HatchSpace::Hybrid), ("image-space", HatchSpace::Image)] {
@@ -209,16 +430,76 @@ fn coherence(scene: &Path, width: u32, height: u32, steps: usize, style: Option<
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
-    let style = parse_style(args.style.as_deref())?;
+    let style = frame_style(args)?;
     let scene = load_scene(&args.scene)?;
     let camera = camera(args, &scene)?;
     let gpu = Arc::new(Gpu::new()?);
-    let renderer = Renderer::new(gpu, &scene);
+    let renderer = Renderer::with_options(gpu, &scene, &args.cache.render_options()?)?;
     let started = std::time::Instant::now();
-    let image = renderer.render(&camera, &style, args.width, args.height)?;
-    info!(ms = started.elapsed().as_millis() as u64, triangles = renderer.triangles_per_frame(), "rendered");
+    let data = data_view(args)?;
+    let image = renderer.render_with_data(&camera, &style, args.width, args.height, &data)?;
+    let stats = renderer.draw_stats(&camera, args.width, args.height);
+    info!(
+        ms = started.elapsed().as_millis() as u64,
+        triangles = stats.triangles,
+        percent_of_source = stats.percent_drawn(),
+        "rendered"
+    );
     image.save(&args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
     println!("{}", args.out.display());
+    Ok(())
+}
+
+/// The data layers of `--mappings` from the layer store in `--data-dir`; Table 9.1 warnings
+/// and clamped times go to stderr.
+fn data_view(args: &RenderArgs) -> Result<DataView> {
+    let Some(arg) = &args.mappings else { return Ok(DataView::default()) };
+    let text = if arg.trim_start().starts_with('[') {
+        arg.to_owned()
+    } else {
+        std::fs::read_to_string(arg).with_context(|| format!("cannot read mappings file {arg}"))?
+    };
+    let mappings: Vec<Mapping> = serde_json::from_str(&text).context("--mappings: invalid JSON")?;
+    let store = Store::open(&args.data_dir)?;
+    let request = DataRequest::resolve(&mappings, args.time.as_deref(), &store).map_err(|e| anyhow::anyhow!("{e}"))?;
+    for warning in &request.warnings {
+        tracing::warn!("{warning}");
+    }
+    Ok(LayerCache::default().view(&request, &store)?)
+}
+
+fn legend(args: &LegendArgs) -> Result<()> {
+    let kind: FieldKind = args.kind.parse()?;
+    let mut options = LoadOptions::new(kind);
+    options.variable = args.variable.clone();
+    options.units = args.units.clone();
+    options.crs = args.crs.as_deref().map(CrsDefinition::parse).transpose()?;
+    let field = fields::load_file(&args.file, &options)?;
+    let range = match &args.range {
+        Some(text) => {
+            let v: Vec<f64> = text
+                .split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--range {text:?}: expected LO,HI numbers"))?;
+            let [lo, hi] = v[..] else { bail!("--range {text:?}: expected LO,HI") };
+            Some([lo, hi])
+        }
+        None => None,
+    };
+    let map = args.colormap.as_deref().map(str::parse::<ColorMapName>).transpose()?;
+    let spec = ColorMapSpec { map, range, opacity: args.opacity, reverse: args.reverse };
+    let lut = Lut::for_field(&spec, &field)?;
+    let title = match &args.title {
+        Some(title) => title.clone(),
+        None => args.file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+    };
+    let legend = Legend::new(&title, kind, field.units(), field.classes(), &lut);
+    std::fs::write(&args.out, legend.to_png()?).with_context(|| format!("cannot write {}", args.out.display()))?;
+    let json_path = args.out.with_extension("json");
+    std::fs::write(&json_path, serde_json::to_string_pretty(&legend)?)
+        .with_context(|| format!("cannot write {}", json_path.display()))?;
+    println!("{}\n{}", args.out.display(), json_path.display());
     Ok(())
 }
 
@@ -257,4 +538,61 @@ async fn shutdown_signal() {
         () = interrupt => {}
         () = terminate => {}
     }
+}
+
+fn bench(args: &BenchArgs) -> Result<()> {
+    use landsketch::bench::{BenchOptions, run};
+    let styles = args
+        .styles
+        .iter()
+        .map(|name| Ok((name.clone(), landsketch::render::presets::preset(name)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let options = BenchOptions { frames: args.frames, width: args.width, height: args.height, step: args.step };
+    let cache = args.cache.render_options()?.cache;
+    let gpu = Arc::new(Gpu::new()?);
+    let report = run(gpu, &args.scene, &args.plants, &styles, &options, cache, |step| info!("{step}"))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{} ({}), {} x{} cores; {}x{}, {} frames; copy pass {:.1} ms",
+        report.adapter,
+        report.backend,
+        report.cpu,
+        report.cores,
+        report.width,
+        report.height,
+        report.frames,
+        report.copy_pass_ms.median
+    );
+    for scene in &report.scenes {
+        println!(
+            "\n{} plants, {} source triangles; prep {:.0} ms (cache {} hits, {} misses); peak RSS {:.0} MiB; GPU ~{:.0} MiB",
+            scene.plants,
+            scene.source_triangles,
+            scene.prep_ms,
+            scene.cache_hits,
+            scene.cache_misses,
+            scene.peak_rss_mib,
+            scene.gpu_mib
+        );
+        for run in &scene.styles {
+            let passes: Vec<String> = run.passes_ms.iter().map(|(k, v)| format!("{k} {:.1}", v.median)).collect();
+            println!(
+                "  {:<14} {:>6.1} ms ({:.1} fps, min {:.1}, max {:.1}); {} triangles = {:.2} % of source; {} plants {:?}; {}",
+                run.style,
+                run.frame_ms.median,
+                run.fps,
+                run.frame_ms.min,
+                run.frame_ms.max,
+                run.triangles,
+                run.percent_drawn,
+                run.plants_drawn,
+                run.per_level,
+                passes.join(", ")
+            );
+        }
+    }
+    Ok(())
 }

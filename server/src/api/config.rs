@@ -18,6 +18,13 @@ pub struct ServerConfig {
     /// Directory for server data (uploaded layers); created when missing.
     #[arg(long, env = "LANDSKETCH_DATA_DIR", default_value = "landsketch-data")]
     pub data_dir: PathBuf,
+    /// Directory of the preprocessing cache (HLPs, baked billboards), so a restart with the
+    /// same scene skips preprocessing; default `<data-dir>/cache`.
+    #[arg(long, env = "LANDSKETCH_CACHE_DIR")]
+    pub cache_dir: Option<PathBuf>,
+    /// Directory of the browser UI, served at `/` (index.html, ES modules, CSS).
+    #[arg(long, env = "LANDSKETCH_WEB_DIR", default_value = "web")]
+    pub web_dir: PathBuf,
     /// Token that write endpoints require as `Authorization: Bearer <token>`; without one,
     /// writes are accepted from loopback clients only.
     #[arg(long, env = "LANDSKETCH_ADMIN_TOKEN", hide_env_values = true)]
@@ -68,6 +75,13 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
+    /// Renderer options: the preprocessing cache in `cache_dir` (or `<data-dir>/cache`).
+    pub fn render_options(&self) -> std::io::Result<crate::render::RenderOptions> {
+        let dir = self.cache_dir.clone().unwrap_or_else(|| self.data_dir.join("cache"));
+        let cache = crate::prep::cache::DiskCache::open(dir)?;
+        Ok(crate::render::RenderOptions { cache: Some(std::sync::Arc::new(cache)), ..Default::default() })
+    }
+
     /// Idle timeout of WebSocket sessions.
     pub fn idle_timeout(&self) -> Duration {
         Duration::from_secs(self.idle_timeout_s)

@@ -6,6 +6,7 @@
 pub mod auth;
 pub mod cache;
 pub mod config;
+pub mod data;
 pub mod error;
 pub mod layers;
 pub mod metrics;
@@ -24,6 +25,7 @@ use crate::scene::{Scene, SceneError};
 use crate::store::{Store, StoreError, StoreLimits};
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, FromRef};
+use axum::handler::HandlerWithoutStateExt;
 use axum::http::{HeaderName, HeaderValue, Request};
 use axum::routing::{get, post};
 use cache::RenderCache;
@@ -39,6 +41,7 @@ use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultOnFailure, DefaultOnResponse, TraceLayer};
 use tracing::{Level, info};
 use view::Limits;
@@ -184,7 +187,8 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         .route("/api/ws", get(ws::upgrade))
         .route("/api/openapi.json", get(openapi::openapi_json))
         .route("/metrics", get(metrics::metrics_handler))
-        .fallback(routes::not_found)
+        // The browser UI at `/`; paths that are neither routes nor files get the JSON 404.
+        .fallback_service(ServeDir::new(&config.web_dir).not_found_service(routes::not_found.into_service()))
         .method_not_allowed_fallback(routes::method_not_allowed)
         .layer(DefaultBodyLimit::max(config.body_limit))
         .layer(axum::middleware::from_fn_with_state(state.metrics().clone(), metrics::track_requests))
@@ -247,6 +251,9 @@ impl Server {
             .await
             .map_err(std::io::Error::other)??;
         info!(dir = %config.data_dir.display(), layers = store.list().len(), "layer store opened");
+        if !config.web_dir.join("index.html").is_file() {
+            tracing::warn!(dir = %config.web_dir.display(), "no index.html in the web directory: the browser UI is off");
+        }
         let listener =
             TcpListener::bind(config.addr).await.map_err(|source| ServerError::Bind { addr: config.addr, source })?;
         Ok(Server { listener, state: AppState::new(config, Arc::new(store)) })
@@ -334,7 +341,16 @@ async fn load(state: AppState, loaded: Option<(Arc<Scene>, Arc<Gpu>)>) -> Result
         let scene_id = scene_id(&config.scene, &adapter)?;
         let metrics = state.metrics().clone();
         let queue_depth = usize::try_from(config.queue_depth).unwrap_or(usize::MAX);
-        let pool = RenderPool::start(gpu, scene.clone(), queue_depth, metrics.clone(), runtime)?;
+        let options = config.render_options()?;
+        let pool = RenderPool::start(
+            gpu,
+            scene.clone(),
+            state.store().clone(),
+            options,
+            queue_depth,
+            metrics.clone(),
+            runtime,
+        )?;
         let cache = RenderCache::new(config.cache_bytes, metrics);
         let geo = SceneGeo::from_terrain(&scene.terrain).map(Arc::new).map_err(|e| e.to_string());
         if let Err(e) = &geo {

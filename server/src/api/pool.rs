@@ -4,11 +4,13 @@
 //! (bounded; a full lane refuses new jobs). Finished images are encoded on tokio's blocking
 //! pool so that encoding overlaps the next render.
 
+use super::data::LayerCache;
 use super::metrics::{KindLabels, Metrics};
 use super::view::ViewRequest;
 use crate::render::renderer::ViewState;
-use crate::render::{Gpu, RenderError, Renderer};
+use crate::render::{Gpu, RenderError, RenderOptions, Renderer};
 use crate::scene::Scene;
+use crate::store::Store;
 use axum::body::Bytes;
 use std::collections::{HashMap, VecDeque};
 use std::panic::AssertUnwindSafe;
@@ -179,11 +181,13 @@ pub struct RenderPool {
 
 impl RenderPool {
     /// Starts the worker thread, builds the [`Renderer`] for `scene` on it and returns once it
-    /// is ready (blocking). At most `rest_capacity` REST renders wait at a time; encoding runs
-    /// on `runtime`'s blocking pool.
+    /// is ready (blocking). Data layers of views are read from `store` on the worker. At most
+    /// `rest_capacity` REST renders wait at a time; encoding runs on `runtime`'s blocking pool.
     pub fn start(
         gpu: Arc<Gpu>,
         scene: Arc<Scene>,
+        store: Arc<Store>,
+        options: RenderOptions,
         rest_capacity: usize,
         metrics: Metrics,
         runtime: Handle,
@@ -198,13 +202,23 @@ impl RenderPool {
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let worker_shared = shared.clone();
         let worker = std::thread::Builder::new().name("render".into()).spawn(move || {
-            let renderer = Renderer::new(gpu, &scene);
+            let renderer = Renderer::with_options(gpu, &scene, &options);
             drop(scene);
             // The receiver only goes away when `start` has returned already.
-            let _ = ready_tx.send(());
-            work(&worker_shared, &renderer, &runtime);
+            match renderer {
+                Ok(renderer) => {
+                    let _ = ready_tx.send(Ok(()));
+                    work(&worker_shared, &renderer, &store, &runtime);
+                }
+                Err(error) => {
+                    let _ = ready_tx.send(Err(error.to_string()));
+                }
+            }
         })?;
-        ready_rx.recv().map_err(|_| std::io::Error::other("the render thread died while building the renderer"))?;
+        ready_rx
+            .recv()
+            .map_err(|_| std::io::Error::other("the render thread died while building the renderer"))?
+            .map_err(|message| std::io::Error::other(format!("cannot build the renderer: {message}")))?;
         Ok(RenderPool { shared, worker: Mutex::new(Some(worker)) })
     }
 
@@ -269,8 +283,9 @@ impl Drop for RenderPool {
 /// The worker loop. REST views render without history (deterministic); each WebSocket session
 /// keeps a [`ViewState`] so its hatching follows the camera from frame to frame (thesis
 /// eq. 6.2), dropped when the session ends.
-fn work(shared: &Shared, renderer: &Renderer, runtime: &Handle) {
+fn work(shared: &Shared, renderer: &Renderer, store: &Store, runtime: &Handle) {
     let mut views: HashMap<u64, ViewState> = HashMap::new();
+    let mut layers = LayerCache::default();
     while let Some((Job { view, kind, session, reply }, left)) = shared.next_job() {
         for id in left {
             views.remove(&id);
@@ -279,12 +294,16 @@ fn work(shared: &Shared, renderer: &Renderer, runtime: &Handle) {
             continue; // the client left while the job waited
         }
         let started = Instant::now();
-        let rendered = std::panic::catch_unwind(AssertUnwindSafe(|| match session {
-            Some(id) => {
-                let state = views.entry(id).or_insert_with(|| renderer.new_view_state());
-                renderer.render_view(state, &view.camera, &view.style, view.width, view.height, false).map(|f| f.image)
+        let rendered = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            let data = layers.view(&view.data, store)?;
+            let (camera, style, width, height) = (&view.camera, view.frame_style(), view.width, view.height);
+            match session {
+                Some(id) => {
+                    let state = views.entry(id).or_insert_with(|| renderer.new_view_state());
+                    renderer.render_view(state, camera, style, width, height, &data, false).map(|f| f.image)
+                }
+                None => renderer.render_with_data(camera, style, width, height, &data),
             }
-            None => renderer.render(&view.camera, &view.style, view.width, view.height),
         }));
         let elapsed = started.elapsed();
         let render_ms = elapsed.as_secs_f32() * 1e3;

@@ -8,6 +8,8 @@ use super::pool::PoolError;
 use super::view::{ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, style_json};
 use super::{AppState, Ready};
 use crate::render::Style;
+use crate::render::presets::PRESETS;
+use crate::render::style::FieldSchema;
 use crate::scene::camera::Camera;
 use axum::Json;
 use axum::body::Bytes;
@@ -105,14 +107,30 @@ pub struct SceneInfo {
     /// Every style field with its default value.
     #[schema(value_type = Object)]
     pub default_style: serde_json::Map<String, serde_json::Value>,
-    /// Style presets (none yet).
-    pub presets: Vec<String>,
+    /// Style presets: name, one-line description and the style fields each sets.
+    pub presets: Vec<PresetInfo>,
+    /// Every style field: name, kind (`number`, `integer`, `boolean`, `string`, `color`),
+    /// default, `min`/`max` where bounded, and what it does.
+    #[schema(value_type = Vec<Object>)]
+    pub style_schema: Vec<FieldSchema>,
     /// Image formats.
     pub formats: Vec<ImageFormat>,
     /// Largest image width in pixels.
     pub max_width: u32,
     /// Largest image height in pixels.
     pub max_height: u32,
+}
+
+/// A style preset in `GET /api/scene`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PresetInfo {
+    /// The name to pass as `preset`.
+    pub name: &'static str,
+    /// What it looks like.
+    pub description: &'static str,
+    /// The style fields it sets over the defaults.
+    #[schema(value_type = Object)]
+    pub style: serde_json::Map<String, serde_json::Value>,
 }
 
 /// `POST /api/cache/clear`.
@@ -163,7 +181,11 @@ pub async fn scene(State(state): State<AppState>) -> Result<Json<SceneInfo>, Api
         default_camera: CameraInfo::from(&scene.default_camera),
         sun: SunInfo { azimuth: scene.sun.azimuth, elevation: scene.sun.elevation },
         default_style: style_json(&Style::default()),
-        presets: Vec::new(),
+        presets: PRESETS
+            .iter()
+            .map(|p| PresetInfo { name: p.name, description: p.description, style: p.overrides() })
+            .collect(),
+        style_schema: Style::schema(),
         formats: vec![ImageFormat::Png, ImageFormat::Jpeg],
         max_width: config.max_width,
         max_height: config.max_height,
@@ -188,7 +210,7 @@ pub async fn render_get(
 ) -> Result<Response, ApiError> {
     let ready = state.ready().ok_or(ApiError::NotReady)?;
     let params = ViewParams::from_query(query.as_deref().unwrap_or_default())?;
-    let view = params.normalize(&ready.scene, state.limits(), Source::Query)?;
+    let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Query)?;
     render_view(ready, view, &headers).await
 }
 
@@ -215,7 +237,7 @@ pub async fn render_post(
         _ => ApiError::bad("body", e.body_text()),
     })?;
     let params = parse_body(&body)?;
-    let view = params.normalize(&ready.scene, state.limits(), Source::Body)?;
+    let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Body)?;
     render_view(ready, view, &headers).await
 }
 
@@ -244,8 +266,12 @@ async fn render_view(ready: &Ready, view: ViewRequest, headers: &HeaderMap) -> R
     let etag = view.etag(&ready.scene_id);
     let etag_header = HeaderValue::from_str(&etag).map_err(|e| ApiError::Internal(e.to_string()))?;
     let link = format!("/api/render?{}", view.to_params().to_query());
+    let warnings: Vec<HeaderValue> = view.data.warnings.iter().filter_map(|w| warning_header(w)).collect();
     let common = |response: &mut Response, cache: &'static str| {
         let h = response.headers_mut();
+        for warning in &warnings {
+            h.append(header::WARNING, warning.clone());
+        }
         h.insert(header::ETAG, etag_header.clone());
         h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
         h.insert("x-cache", HeaderValue::from_static(cache));
@@ -272,6 +298,19 @@ async fn render_view(ready: &Ready, view: ViewRequest, headers: &HeaderMap) -> R
     common(&mut response, cache);
     response.headers_mut().insert("x-render-ms", HeaderValue::from(image.render_ms.round() as u32));
     Ok(response)
+}
+
+/// A `Warning: 199 landsketch "…"` header value (RFC 7234 miscellaneous warning) for a data
+/// note (Table 9.1, clamped time), in ASCII.
+fn warning_header(message: &str) -> Option<HeaderValue> {
+    let ascii: String = message
+        .replace('→', "->")
+        .replace('…', "..")
+        .chars()
+        .map(|c| if c.is_ascii_graphic() || c == ' ' { c } else { '?' })
+        .filter(|c| *c != '"' && *c != '\\')
+        .collect();
+    HeaderValue::from_str(&format!("199 landsketch \"{ascii}\"")).ok()
 }
 
 /// True when an `If-None-Match` header lists `etag` (or is `*`).

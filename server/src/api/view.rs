@@ -4,13 +4,18 @@
 //! link round-trips: [`ViewParams::to_query`] and [`ViewParams::from_query`] convert between
 //! the two encodings.
 
+use super::data::DataRequest;
 use super::error::ApiError;
+use crate::fields::Mapping;
+use crate::render::style::{FrameStyle, TERRAIN_LAYER};
 use crate::render::{RenderError, Style};
 use crate::scene::Scene;
-use crate::scene::camera::Camera;
+use crate::scene::camera::{Camera, Projection};
+use crate::store::Store;
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
 use utoipa::{IntoParams, ToSchema};
 
 /// Image width when a request gives none.
@@ -23,6 +28,18 @@ pub const DEFAULT_JPEG_QUALITY: u8 = 90;
 pub const DEFAULT_EYE_HEIGHT: f32 = 1.7;
 /// Largest absolute camera coordinate in scene metres.
 const MAX_COORDINATE: f32 = 1.0e7;
+/// Height of a plan view's eye above the highest terrain point, in metres (above every plant).
+pub const PLAN_EYE_CLEARANCE: f32 = 200.0;
+
+/// How a camera projects: `perspective` (default) or `plan` (orthographic, top-down).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum CameraMode {
+    /// A perspective view from the eye position.
+    Perspective,
+    /// A map-like plan view: `center` and `width` in scene metres, `yaw` up in the image.
+    Plan,
+}
 
 /// Encoded image formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, ToSchema)]
@@ -105,6 +122,19 @@ impl Source {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct CameraParams {
+    /// `perspective` (default) or `plan`: an orthographic top-down view of `width` metres
+    /// centred on `center`, heading `yaw` up (0: north up).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mode: Option<CameraMode>,
+    /// Plan view: `[x, y]` of the image centre in scene metres (default: the current camera's
+    /// x and y).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<f32>>, min_items = 2, max_items = 2)]
+    pub center: Option<Vec<f32>>,
+    /// Plan view: scene metres across the image (default: the current plan width, else the
+    /// terrain's larger side).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub width: Option<f32>,
     /// `[x, y]` (the eye `eye_height` above the terrain) or `[x, y, z]`, scene metres.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<f32>>, min_items = 2, max_items = 3)]
@@ -141,6 +171,20 @@ impl CameraParams {
     /// puts the eye above the terrain. Out-of-range values are 422s naming the parameter.
     pub fn resolve(&self, base: &Camera, scene: &Scene, source: Source) -> Result<ResolvedCamera, ApiError> {
         let name = |field: &str| source.camera_field(field);
+        let plan = match self.mode {
+            Some(mode) => mode == CameraMode::Plan,
+            None => !base.projection.is_perspective(),
+        };
+        if plan {
+            return self.resolve_plan(base, scene, source);
+        }
+        if let Some(field) = [("center", self.center.is_some()), ("width", self.width.is_some())]
+            .into_iter()
+            .find_map(|(field, given)| given.then_some(field))
+        {
+            return Err(ApiError::invalid(name(field), format!("{field} applies to plan views only (mode plan)")));
+        }
+        let base = &Camera { projection: Projection::Perspective, ..*base };
         if let Some(eye) = self.eye_height
             && !(0.0..=10_000.0).contains(&eye)
         {
@@ -196,6 +240,46 @@ impl CameraParams {
         camera.roll = checked(self.roll, camera.roll, &name("roll"), -180.0, 180.0)?;
         Ok(resolved)
     }
+
+    /// A plan view: centre and width from these parameters or `base`, the eye
+    /// [`PLAN_EYE_CLEARANCE`] above the highest terrain, looking straight down.
+    fn resolve_plan(&self, base: &Camera, scene: &Scene, source: Source) -> Result<ResolvedCamera, ApiError> {
+        let name = |field: &str| source.camera_field(field);
+        let perspective_only = [
+            ("position", self.position.is_some()),
+            ("eye_height", self.eye_height.is_some()),
+            ("pitch", self.pitch.is_some()),
+            ("fov", self.fov.is_some()),
+        ];
+        if let Some((field, _)) = perspective_only.into_iter().find(|(_, given)| *given) {
+            return Err(ApiError::invalid(
+                name(field),
+                format!("{field} does not apply to a plan view; give center and width"),
+            ));
+        }
+        let ([x0, y0], [x1, y1]) = scene.terrain.bounds();
+        let [cx, cy] = match self.center.as_deref() {
+            None => [base.position[0], base.position[1]],
+            Some(&[x, y]) if [x, y].iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE) => [x, y],
+            Some(other) => {
+                return Err(ApiError::invalid(
+                    name("center"),
+                    format!("expected [x, y] within ±{MAX_COORDINATE} metres, got {other:?}"),
+                ));
+            }
+        };
+        let default_width = match base.projection {
+            Projection::Plan { width } => width,
+            Projection::Perspective => (x1 - x0).max(y1 - y0) as f32,
+        };
+        let width = checked(self.width, default_width, &name("width"), 0.01, 1.0e6)?;
+        let top = scene.terrain.dem.data.iter().copied().filter(|h| h.is_finite()).fold(f64::MIN, f64::max);
+        let z = if top == f64::MIN { 0.0 } else { top as f32 } + PLAN_EYE_CLEARANCE;
+        let mut camera = Camera { roll: base.roll, yaw: base.yaw, ..Camera::plan(cx, cy, z, width) };
+        camera.yaw = checked(self.yaw, camera.yaw, &name("yaw"), -3600.0, 3600.0)?;
+        camera.roll = checked(self.roll, camera.roll, &name("roll"), -180.0, 180.0)?;
+        Ok(ResolvedCamera { camera, eye_height: None })
+    }
 }
 
 fn checked(value: Option<f32>, default: f32, parameter: &str, lo: f32, hi: f32) -> Result<f32, ApiError> {
@@ -225,13 +309,29 @@ pub struct ViewParams {
     /// JPEG quality 1–100 (default 90); ignored for PNG.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quality: Option<u32>,
-    /// A named style preset (none are defined yet: any name is a 404).
+    /// A named style preset (`GET /api/scene` lists them); `style` merges over it. An
+    /// unknown name is a 404.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
     /// Style overrides: a JSON object with any subset of the style fields (README, "Style").
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
     pub style: Option<Value>,
+    /// Styles of single layers (thesis 8.2.8): layer name (`terrain` or a vegetation layer)
+    /// → a partial style merged over the view's style, or over `"preset"` when it names one,
+    /// e.g. `{"existing": {"preset": "photorealism"}}`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub layer_styles: Option<Map<String, Value>>,
+    /// Data layers shown in the view (D3/D4): up to 3 `{"layer": id, "target": "color" |
+    /// "hatch_tone" | "hatch_pattern" | "silhouette_style" | "silhouette_density", "range":
+    /// [lo, hi], "colormap": name, "opacity": 0..1, "reverse": bool}`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Vec<Object>>)]
+    pub mappings: Option<Vec<Mapping>>,
+    /// ISO 8601 time of the data layers (D5; default: each layer's first step).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<String>,
 }
 
 /// The query parameters of `GET /api/render`: [`ViewParams`] flattened (`x`, `y`, `z` for
@@ -264,6 +364,15 @@ pub struct RenderQuery {
     /// Rotation about the view direction in degrees, −180…180.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub roll: Option<f32>,
+    /// `perspective` (default) or `plan` (orthographic top-down).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mode: Option<CameraMode>,
+    /// Plan view centre `x,y` in scene metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub center: Option<String>,
+    /// Plan view: scene metres across the image.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plan_width: Option<f32>,
     /// Image width in pixels (default 1024).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub width: Option<u32>,
@@ -276,12 +385,21 @@ pub struct RenderQuery {
     /// JPEG quality 1–100 (default 90).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quality: Option<u32>,
-    /// Style preset name (none defined yet).
+    /// Style preset name (`GET /api/scene` lists them).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
     /// Style overrides as a URL-encoded JSON object, e.g. `{"hatch_map":2}`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub style: Option<String>,
+    /// Per-layer styles as a URL-encoded JSON object, e.g. `{"existing":{"photorealism":1}}`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub layer_styles: Option<String>,
+    /// Data-layer mappings as a URL-encoded JSON array (see the JSON body's `mappings`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mappings: Option<String>,
+    /// ISO 8601 time of the data layers.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<String>,
 }
 
 /// Limits a server puts on views.
@@ -317,8 +435,33 @@ impl ViewParams {
             ),
             None => None,
         };
+        let layer_styles =
+            match &q.layer_styles {
+                Some(text) => Some(serde_json::from_str(text).map_err(|e| {
+                    ApiError::bad("layer_styles", format!("layer_styles is not a valid JSON object: {e}"))
+                })?),
+                None => None,
+            };
+        let mappings = match &q.mappings {
+            Some(text) => Some(serde_json::from_str(text).map_err(|e| {
+                ApiError::bad("mappings", format!("mappings is not a valid JSON array of mappings: {e}"))
+            })?),
+            None => None,
+        };
+        let center = match &q.center {
+            Some(text) => Some(
+                text.split(',')
+                    .map(|v| v.trim().parse::<f32>())
+                    .collect::<Result<Vec<_>, _>>()
+                    .map_err(|_| ApiError::bad("center", format!("center {text:?} is not x,y")))?,
+            ),
+            None => None,
+        };
         Ok(ViewParams {
             camera: CameraParams {
+                mode: q.mode,
+                center,
+                width: q.plan_width,
                 position,
                 eye_height: q.eye_height,
                 yaw: q.yaw,
@@ -332,6 +475,9 @@ impl ViewParams {
             quality: q.quality,
             preset: q.preset,
             style,
+            layer_styles,
+            mappings,
+            time: q.time,
         })
     }
 
@@ -349,23 +495,33 @@ impl ViewParams {
             pitch: self.camera.pitch,
             fov: self.camera.fov,
             roll: self.camera.roll,
+            mode: self.camera.mode,
+            center: self.camera.center.as_ref().map(|c| c.iter().map(f32::to_string).collect::<Vec<_>>().join(",")),
+            plan_width: self.camera.width,
             width: self.width,
             height: self.height,
             format: self.format.clone(),
             quality: self.quality,
             preset: self.preset.clone(),
             style: self.style.as_ref().map(Value::to_string),
+            layer_styles: self.layer_styles.as_ref().map(|m| Value::Object(m.clone()).to_string()),
+            mappings: self.mappings.as_ref().and_then(|m| serde_json::to_string(m).ok()),
+            time: self.time.clone(),
         };
         serde_urlencoded::to_string(&query).expect("flat query parameters always URL-encode")
     }
 
     /// Validates and normalizes these parameters into the view to render: defaults filled
-    /// in, the eye placed on the terrain, the style parsed. 413 for images above `limits`,
-    /// 422 for out-of-range values, 404 for an unknown preset.
-    pub fn normalize(&self, scene: &Scene, limits: Limits, source: Source) -> Result<ViewRequest, ApiError> {
-        if let Some(preset) = &self.preset {
-            return Err(ApiError::NotFound(format!("unknown preset {preset:?}; this server has no presets yet")));
-        }
+    /// in, the eye placed on the terrain, the style parsed, data layers looked up in `store`
+    /// and checked against Table 9.1. 413 for images above `limits`, 422 for out-of-range
+    /// values, 404 for an unknown preset or layer.
+    pub fn normalize(
+        &self,
+        scene: &Scene,
+        store: &Store,
+        limits: Limits,
+        source: Source,
+    ) -> Result<ViewRequest, ApiError> {
         let camera = self.camera.resolve(&scene.default_camera, scene, source)?.camera;
         let width = image_side("width", self.width.unwrap_or(DEFAULT_WIDTH), limits.max_width)?;
         let height = image_side("height", self.height.unwrap_or(DEFAULT_HEIGHT), limits.max_height)?;
@@ -375,8 +531,10 @@ impl ViewParams {
         };
         let quality = jpeg_quality(self.quality, "quality")?;
         let quality = (format == ImageFormat::Jpeg).then_some(quality);
-        let style = parse_style(self.style.as_ref(), "style")?;
-        Ok(ViewRequest { camera, width, height, format, quality, style })
+        let style = parse_style(self.preset.as_deref(), self.style.as_ref(), "style")?;
+        let layer_styles = parse_layer_styles(&style, self.layer_styles.as_ref(), scene)?;
+        let data = DataRequest::resolve(self.mappings.as_deref().unwrap_or_default(), self.time.as_deref(), store)?;
+        Ok(ViewRequest { camera, width, height, format, quality, style, layer_styles, data })
     }
 }
 
@@ -402,39 +560,75 @@ pub fn image_side(parameter: &str, value: u32, max: u32) -> Result<u32, ApiError
     }
 }
 
-/// Builds a [`Style`] from a JSON object of overrides on the defaults; errors are 422s naming
-/// the field as `<parameter>.<field>`.
-pub fn parse_style(overrides: Option<&Value>, parameter: &str) -> Result<Style, ApiError> {
-    let Some(overrides) = overrides else { return Ok(Style::default()) };
-    if !overrides.is_object() {
-        return Err(ApiError::invalid(parameter, format!("{parameter} must be a JSON object of style fields")));
+/// A style error as an API error: an unknown preset is a 404 naming it and the known ones;
+/// bad fields are 422s naming the field as `<parameter>.<field>`.
+fn style_error(error: RenderError, parameter: &str) -> ApiError {
+    let message = format!("{parameter}: {error}");
+    match &error {
+        RenderError::UnknownPreset { .. } => ApiError::NotFound(message),
+        RenderError::Style { field, .. } => ApiError::invalid(format!("{parameter}.{field}"), message),
+        RenderError::StyleField { field: Some(field), .. } => {
+            ApiError::invalid(format!("{parameter}.{field}"), message)
+        }
+        _ => ApiError::invalid(parameter, message),
     }
-    let style: Style = serde_path_to_error::deserialize(overrides).map_err(|e| {
-        let path = e.path().to_string();
-        let name = if path == "." { parameter.to_owned() } else { format!("{parameter}.{path}") };
-        ApiError::invalid(name, format!("{parameter}: {}", e.inner()))
-    })?;
-    style.validate().map_err(|e| match e {
-        RenderError::Style { field, .. } => ApiError::invalid(format!("{parameter}.{field}"), e.to_string()),
-        other => ApiError::invalid(parameter, other.to_string()),
-    })?;
-    Ok(style)
+}
+
+/// Builds a [`Style`] from an optional preset (404 when unknown) and a JSON object of overrides
+/// merged over it (or over the defaults); errors are 422s naming the field as
+/// `<parameter>.<field>`.
+pub fn parse_style(preset: Option<&str>, overrides: Option<&Value>, parameter: &str) -> Result<Style, ApiError> {
+    let overrides = match overrides {
+        None => &Map::new(),
+        Some(Value::Object(map)) => map,
+        Some(_) => {
+            return Err(ApiError::invalid(parameter, format!("{parameter} must be a JSON object of style fields")));
+        }
+    };
+    Style::from_preset(preset, overrides).map_err(|e| style_error(e, parameter))
+}
+
+/// The per-layer styles of a view: each partial style merged over `base` (or over the preset
+/// it names). A name that is neither `terrain` nor a layer of `scene` is a 422 naming the
+/// known ones.
+pub fn parse_layer_styles(
+    base: &Style,
+    layers: Option<&Map<String, Value>>,
+    scene: &Scene,
+) -> Result<BTreeMap<String, Style>, ApiError> {
+    let mut styles = BTreeMap::new();
+    for (name, partial) in layers.into_iter().flatten() {
+        let parameter = format!("layer_styles.{name}");
+        if name != TERRAIN_LAYER && !scene.layers.iter().any(|l| &l.name == name) {
+            let known: Vec<&str> =
+                std::iter::once(TERRAIN_LAYER).chain(scene.layers.iter().map(|l| l.name.as_str())).collect();
+            let message = format!("{name:?} is not a layer of this scene; layers: {}", known.join(", "));
+            return Err(ApiError::invalid(parameter, message));
+        }
+        let Value::Object(partial) = partial else {
+            return Err(ApiError::invalid(parameter, "a layer style must be a JSON object of style fields"));
+        };
+        styles.insert(name.clone(), base.layer(partial).map_err(|e| style_error(e, &parameter))?);
+    }
+    Ok(styles)
 }
 
 /// `style` as a JSON object. Goes through JSON text so that `f32` fields keep their short
 /// decimal form (0.98, not 0.9800000190734863).
 pub fn style_json(style: &Style) -> Map<String, Value> {
-    match serde_json::to_string(style).and_then(|text| serde_json::from_str(&text)) {
-        Ok(Value::Object(map)) => map,
-        _ => Map::new(),
-    }
+    style.to_json()
+}
+
+/// The fields of `style` that differ from `base`.
+fn style_diff(style: &Style, base: &Style) -> Map<String, Value> {
+    let base = base.to_json();
+    style.to_json().into_iter().filter(|(k, v)| base.get(k) != Some(v)).collect()
 }
 
 /// The fields of `style` that differ from the default style: the short form of a style in
 /// links.
 pub fn style_overrides(style: &Style) -> Map<String, Value> {
-    let (actual, default) = (style_json(style), style_json(&Style::default()));
-    actual.into_iter().filter(|(k, v)| default.get(k) != Some(v)).collect()
+    style_diff(style, &Style::default())
 }
 
 /// A validated, normalized view: what is rendered, hashed for the ETag and cached. Equal
@@ -453,28 +647,60 @@ pub struct ViewRequest {
     pub quality: Option<u8>,
     /// The complete style.
     pub style: Style,
+    /// Complete styles of single layers (absent from the JSON, so the ETag, when there are
+    /// none).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub layer_styles: BTreeMap<String, Style>,
+    /// Data layers and time (absent from the JSON, so the ETag, when there are none).
+    #[serde(skip_serializing_if = "DataRequest::is_empty")]
+    pub data: DataRequest,
 }
 
 impl ViewRequest {
+    /// The styles to render: the view's style and its layers' styles.
+    pub fn frame_style(&self) -> FrameStyle {
+        FrameStyle { base: self.style.clone(), layers: self.layer_styles.clone() }
+    }
+
     /// The parameters that normalize back to this view: the body of a `POST /api/render`,
     /// or with [`ViewParams::to_query`] a `GET /api/render` link.
     pub fn to_params(&self) -> ViewParams {
         let c = &self.camera;
-        ViewParams {
-            camera: CameraParams {
+        let camera = match c.projection {
+            Projection::Perspective => CameraParams {
                 position: Some(c.position.to_vec()),
-                eye_height: None,
                 yaw: Some(c.yaw),
                 pitch: Some(c.pitch),
                 fov: Some(c.fov),
                 roll: Some(c.roll),
+                ..CameraParams::default()
             },
+            Projection::Plan { width } => CameraParams {
+                mode: Some(CameraMode::Plan),
+                center: Some(vec![c.position[0], c.position[1]]),
+                width: Some(width),
+                yaw: Some(c.yaw),
+                roll: Some(c.roll),
+                ..CameraParams::default()
+            },
+        };
+        ViewParams {
+            camera,
             width: Some(self.width),
             height: Some(self.height),
             format: Some(self.format.name().into()),
             quality: self.quality.map(u32::from),
             preset: None,
             style: Some(style_overrides(&self.style)).filter(|m| !m.is_empty()).map(Value::Object),
+            layer_styles: Some(
+                self.layer_styles
+                    .iter()
+                    .map(|(name, style)| (name.clone(), Value::Object(style_diff(style, &self.style))))
+                    .collect(),
+            )
+            .filter(|m: &Map<String, Value>| !m.is_empty()),
+            mappings: Some(self.data.mappings.clone()).filter(|m| !m.is_empty()),
+            time: self.data.time.clone(),
         }
     }
 

@@ -7,15 +7,17 @@
 //! (`--interactive-scale`, `--interactive-quality`, at most `--max-fps`); after
 //! `--still-delay-ms` of rest the session gets a full-size still in its own format.
 
+use super::data::DataRequest;
 use super::error::{ApiError, ErrorDetail};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
 use super::routes::{CameraInfo, pool_error};
 use super::view::{
     CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_side,
-    jpeg_quality, parse_style, style_overrides,
+    jpeg_quality, parse_layer_styles, parse_style, style_overrides,
 };
 use super::{AppState, Ready};
+use crate::fields::Mapping;
 use crate::render::Style;
 use crate::scene::camera::Camera;
 use axum::body::Bytes;
@@ -24,6 +26,7 @@ use axum::extract::{RawQuery, State};
 use axum::response::Response;
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
+use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::time::Instant;
 use utoipa::ToSchema;
@@ -62,12 +65,21 @@ pub enum ClientMessage {
     Camera(CameraParams),
     /// Moves the camera relative to where it is.
     Move(Move),
-    /// Changes the style: `style` fields are merged into the session's overrides (or
-    /// replace them with `replace: true`).
+    /// Changes the style: `style` fields are merged into the session's overrides, a `preset`
+    /// becomes the base they merge over, and `layer_styles` fields are merged into each named
+    /// layer's overrides (or all of them replace the session's with `replace: true`).
     Style {
         /// Style fields (README, "Style").
+        #[serde(default)]
         #[schema(value_type = Object)]
         style: Map<String, Value>,
+        /// Style preset the overrides merge over.
+        #[serde(default)]
+        preset: Option<String>,
+        /// Per-layer partial styles: layer name → style fields (or `"preset"`).
+        #[serde(default)]
+        #[schema(value_type = Object)]
+        layer_styles: Map<String, Value>,
         /// Replace all overrides instead of merging.
         #[serde(default)]
         replace: bool,
@@ -85,6 +97,18 @@ pub enum ClientMessage {
         format: Option<String>,
         /// JPEG quality 1–100.
         quality: Option<u32>,
+    },
+    /// Replaces the session's data layers and time (D3–D5): `mappings` as in the render
+    /// body (empty or left out: none), `time` ISO 8601 (left out: each layer's first step).
+    /// Answered by a `data` message with the warnings of Table 9.1 and clamped times.
+    Data {
+        /// Up to 3 mappings of stored layers onto visual features.
+        #[serde(default)]
+        #[schema(value_type = Vec<Object>)]
+        mappings: Vec<Mapping>,
+        /// Time of the data layers.
+        #[serde(default)]
+        time: Option<String>,
     },
     /// Asks for a `pong` with the same `id`.
     Ping {
@@ -138,6 +162,13 @@ pub enum ServerMessage {
         render_ms: f32,
         /// The camera of the frame.
         camera: CameraInfo,
+    },
+    /// Answer to a `data` control: the normalized time and the warnings.
+    Data {
+        /// The time as RFC 3339, if one was given.
+        time: Option<String>,
+        /// Unsuitable or limited mappings (Table 9.1) and clamped times.
+        warnings: Vec<String>,
     },
     /// Answer to `ping`.
     Pong {
@@ -234,7 +265,7 @@ pub async fn upgrade(
     let ws = ws.map_err(|e| ApiError::BadRequest { parameter: None, message: e.body_text() })?;
     let ready = state.ready().ok_or(ApiError::NotReady)?;
     let params = ViewParams::from_query(query.as_deref().unwrap_or_default())?;
-    let initial = params.normalize(&ready.scene, state.limits(), Source::Query)?;
+    let initial = params.normalize(&ready.scene, state.store(), state.limits(), Source::Query)?;
     let walking = !matches!(params.camera.position.as_deref(), Some([_, _, _]));
     let config = state.config();
     let guard = SessionGuard::enter(state.metrics(), config.max_sessions).ok_or_else(|| ApiError::Busy {
@@ -282,11 +313,17 @@ struct View {
     /// Eye height above the terrain while walking; `None` while flying.
     eye_height: Option<f32>,
     style_overrides: Map<String, Value>,
+    /// The preset the style overrides merge over.
+    preset: Option<String>,
     style: Style,
+    /// Per-layer partial styles (layer name → fields over `style`) and the complete styles.
+    layer_overrides: Map<String, Value>,
+    layer_styles: BTreeMap<String, Style>,
     width: u32,
     height: u32,
     format: ImageFormat,
     quality: u8,
+    data: DataRequest,
 }
 
 struct InFlight {
@@ -336,11 +373,15 @@ impl<'a> Session<'a> {
                 camera,
                 eye_height,
                 style_overrides: style_overrides(&initial.style),
+                preset: None,
+                layer_overrides: initial.to_params().layer_styles.unwrap_or_default(),
+                layer_styles: initial.layer_styles,
                 style: initial.style,
                 width: initial.width,
                 height: initial.height,
                 format: initial.format,
                 quality: initial.quality.unwrap_or(DEFAULT_JPEG_QUALITY),
+                data: initial.data,
             },
             seq: 0,
             frame_id: 0,
@@ -432,13 +473,27 @@ impl<'a> Session<'a> {
                 }));
             }
         };
-        let interaction =
-            matches!(message, ClientMessage::Camera(_) | ClientMessage::Move(_) | ClientMessage::Style { .. });
+        let interaction = matches!(
+            message,
+            ClientMessage::Camera(_)
+                | ClientMessage::Move(_)
+                | ClientMessage::Style { .. }
+                | ClientMessage::Data { .. }
+        );
+        let mut answer = None;
         let applied = match message {
             ClientMessage::Ping { id } => return Some(ServerMessage::Pong { id }),
+            ClientMessage::Data { mappings, time } => {
+                DataRequest::resolve(&mappings, time.as_deref(), self.state.store()).map(|data| {
+                    answer = Some(ServerMessage::Data { time: data.time.clone(), warnings: data.warnings.clone() });
+                    self.view.data = data;
+                })
+            }
             ClientMessage::Camera(params) => self.set_camera(&params),
             ClientMessage::Move(m) => self.move_camera(&m),
-            ClientMessage::Style { style, replace } => self.set_style(style, replace),
+            ClientMessage::Style { style, preset, layer_styles, replace } => {
+                self.set_style(style, preset, layer_styles, replace)
+            }
             ClientMessage::Size { width, height } => self.set_size(width, height),
             ClientMessage::Quality { format, quality } => self.set_quality(format.as_deref(), quality),
         };
@@ -448,7 +503,7 @@ impl<'a> Session<'a> {
                 if interaction {
                     self.last_control = Some(now);
                 }
-                None
+                answer
             }
             Err(error) => Some(self.reject(error)),
         }
@@ -502,14 +557,31 @@ impl<'a> Session<'a> {
         Ok(())
     }
 
-    fn set_style(&mut self, style: Map<String, Value>, replace: bool) -> Result<(), ApiError> {
-        let mut overrides = if replace { Map::new() } else { self.view.style_overrides.clone() };
+    fn set_style(
+        &mut self,
+        style: Map<String, Value>,
+        preset: Option<String>,
+        layer_styles: Map<String, Value>,
+        replace: bool,
+    ) -> Result<(), ApiError> {
+        let v = &self.view;
+        let (mut overrides, mut layers) =
+            if replace { (Map::new(), Map::new()) } else { (v.style_overrides.clone(), v.layer_overrides.clone()) };
+        let preset = if replace { preset } else { preset.or_else(|| v.preset.clone()) };
         overrides.extend(style);
-        let overrides = Value::Object(overrides);
-        self.view.style = parse_style(Some(&overrides), "style")?;
-        if let Value::Object(map) = overrides {
-            self.view.style_overrides = map;
+        for (name, fields) in layer_styles {
+            match (layers.get_mut(&name), fields) {
+                (Some(Value::Object(old)), Value::Object(new)) => old.extend(new),
+                (_, fields) => {
+                    layers.insert(name, fields);
+                }
+            }
         }
+        let base = parse_style(preset.as_deref(), Some(&Value::Object(overrides.clone())), "style")?;
+        let layer_styles = parse_layer_styles(&base, Some(&layers), &self.ready.scene)?;
+        self.view.style_overrides = overrides;
+        (self.view.preset, self.view.style, self.view.layer_overrides) = (preset, base, layers);
+        self.view.layer_styles = layer_styles;
         Ok(())
     }
 
@@ -543,7 +615,19 @@ impl<'a> Session<'a> {
             (v.width, v.height, v.format, v.quality, FrameKind::Still)
         };
         let quality = (format == ImageFormat::Jpeg).then_some(quality);
-        (ViewRequest { camera: v.camera, width, height, format, quality, style: v.style.clone() }, kind)
+        (
+            ViewRequest {
+                camera: v.camera,
+                width,
+                height,
+                format,
+                quality,
+                style: v.style.clone(),
+                layer_styles: v.layer_styles.clone(),
+                data: v.data.clone(),
+            },
+            kind,
+        )
     }
 
     /// Queues the view to show if it is not shown or coming already; sets the next wake-up
@@ -680,6 +764,15 @@ mod tests {
         let camera: ClientMessage =
             serde_json::from_str(r#"{"type": "camera", "position": [1, 2], "pitch": -3}"#).expect("camera");
         assert!(matches!(camera, ClientMessage::Camera(CameraParams { pitch: Some(-3.0), .. })));
+        let data: ClientMessage = serde_json::from_str(
+            r#"{"type": "data", "mappings": [{"layer": "plume", "target": "color"}], "time": "2024-07-01"}"#,
+        )
+        .expect("data");
+        assert!(matches!(data, ClientMessage::Data { ref mappings, time: Some(_) } if mappings.len() == 1));
+        let plan: ClientMessage =
+            serde_json::from_str(r#"{"type": "camera", "mode": "plan", "center": [0, 0], "width": 900}"#)
+                .expect("plan");
+        assert!(matches!(plan, ClientMessage::Camera(CameraParams { width: Some(900.0), .. })));
         for garbage in [
             r#"{"type": "move", "speed": 1}"#,
             r#"{"type": "camera", "zoom": 2}"#,

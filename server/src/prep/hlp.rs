@@ -2,6 +2,7 @@
 //! spheres of bounded radius. Every foliage vertex then knows its HLP centre C and radius r, so
 //! shaders can form the HLP normal N_HLP = P − C (thesis eq. 4.7).
 
+use super::cache::{DiskCache, KeyBuilder, Reader};
 use crate::scene::mesh::Mesh;
 use crate::scene::plant::{PartKind, PlantModel};
 use glam::Vec3;
@@ -88,8 +89,9 @@ pub fn model_hash(model: &PlantModel) -> u64 {
 }
 
 /// [`cluster`] with a process-wide cache keyed by the model's content hash and the radius, so
-/// every scene (and every restyle) reuses the HLPs of a model already seen.
-pub fn cluster_cached(model: &PlantModel, max_radius: f32) -> Arc<Hlps> {
+/// every scene (and every restyle) reuses the HLPs of a model already seen; with `disk`, also
+/// cached across restarts.
+pub fn cluster_cached(model: &PlantModel, max_radius: f32, disk: Option<&DiskCache>) -> Arc<Hlps> {
     type Cache = Mutex<HashMap<(u64, u32), Arc<Hlps>>>;
     static CACHE: OnceLock<Cache> = OnceLock::new();
     let key = (model_hash(model), max_radius.to_bits());
@@ -97,9 +99,57 @@ pub fn cluster_cached(model: &PlantModel, max_radius: f32) -> Arc<Hlps> {
     if let Some(hit) = cache.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
         return hit.clone();
     }
-    let hlps = Arc::new(cluster(model, max_radius));
+    let hlps = Arc::new(match disk {
+        Some(disk) => {
+            let disk_key = KeyBuilder::default().bytes(b"hlp v1").u64(key.0).f32(max_radius).finish();
+            disk.get_or_compute("hlp", &disk_key, |b| decode(b, model), encode, || cluster(model, max_radius))
+        }
+        None => cluster(model, max_radius),
+    });
     cache.lock().unwrap_or_else(|e| e.into_inner()).insert(key, hlps.clone());
     hlps
+}
+
+/// Serialises a clustering for the disk cache: sphere count, spheres, then per part the
+/// triangle count and the triangles' HLP indices (all little endian).
+fn encode(hlps: &Hlps) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend((hlps.spheres.len() as u32).to_le_bytes());
+    for s in &hlps.spheres {
+        for v in [s.center.x, s.center.y, s.center.z, s.radius] {
+            out.extend(v.to_le_bytes());
+        }
+    }
+    out.extend((hlps.triangle_hlp.len() as u32).to_le_bytes());
+    for part in &hlps.triangle_hlp {
+        out.extend((part.len() as u32).to_le_bytes());
+        out.extend(part.iter().flat_map(|i| i.to_le_bytes()));
+    }
+    out
+}
+
+/// Reads what [`encode`] wrote, checking it against `model` (part and triangle counts, index
+/// range) so a stale or corrupt entry is rejected.
+fn decode(bytes: &[u8], model: &PlantModel) -> Option<Hlps> {
+    let mut r = Reader::new(bytes);
+    let count = r.u32()? as usize;
+    let spheres = (0..count)
+        .map(|_| Some(Sphere { center: Vec3::new(r.f32()?, r.f32()?, r.f32()?), radius: r.f32()? }))
+        .collect::<Option<Vec<_>>>()?;
+    if r.u32()? as usize != model.parts.len() {
+        return None;
+    }
+    let mut triangle_hlp = Vec::with_capacity(model.parts.len());
+    for part in &model.parts {
+        let n = r.u32()? as usize;
+        let expected = if part.kind == PartKind::Foliage { part.mesh.triangle_count() } else { 0 };
+        if n != expected {
+            return None;
+        }
+        let indices = (0..n).map(|_| r.u32().filter(|&i| (i as usize) < count)).collect::<Option<Vec<_>>>()?;
+        triangle_hlp.push(indices);
+    }
+    r.is_empty().then_some(Hlps { spheres, triangle_hlp })
 }
 
 /// A mesh whose vertices each belong to one HLP: vertices shared by triangles of different
@@ -128,6 +178,24 @@ pub fn split_by_hlp(mesh: &Mesh, triangle_hlp: &[u32]) -> HlpMesh {
         }
     }
     out
+}
+
+/// Reorders the triangles of `split` by HLP and returns, per HLP index below `count`, the range
+/// of its indices in `split.mesh.indices`, so one HLP's leaves can be drawn alone.
+pub fn sort_by_hlp(split: &mut HlpMesh, count: usize) -> Vec<std::ops::Range<u32>> {
+    let indices = &mut split.mesh.indices;
+    let mut triangles: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    triangles.sort_by_key(|t| split.hlp[t[0] as usize]);
+    *indices = triangles.iter().flatten().copied().collect();
+    let mut ranges = vec![0..0; count];
+    for (i, t) in triangles.iter().enumerate() {
+        let h = split.hlp[t[0] as usize] as usize;
+        if let Some(range) = ranges.get_mut(h) {
+            let start = if range.start == range.end { 3 * i as u32 } else { range.start };
+            *range = start..3 * i as u32 + 3;
+        }
+    }
+    ranges
 }
 
 #[cfg(test)]
@@ -191,14 +259,28 @@ mod tests {
         assert_eq!(split.hlp, vec![0, 0, 0, 1, 1, 1]);
         let same = split_by_hlp(&mesh, &[0, 0]);
         assert_eq!(same.mesh.positions.len(), 4);
+        let mut reordered = split_by_hlp(&mesh, &[1, 0]);
+        let ranges = sort_by_hlp(&mut reordered, 2);
+        assert_eq!(ranges, vec![0..3, 3..6]);
+        assert!(reordered.mesh.indices[..3].iter().all(|&v| reordered.hlp[v as usize] == 0));
     }
 
     #[test]
     fn cache_returns_the_same_clustering() {
         let model = leaf_model(&[[0.0, 0.0, 1.0], [2.0, 0.0, 1.0]]);
-        let a = cluster_cached(&model, 0.5);
-        let b = cluster_cached(&model, 0.5);
+        let a = cluster_cached(&model, 0.5, None);
+        let b = cluster_cached(&model, 0.5, None);
         assert!(Arc::ptr_eq(&a, &b));
         assert_eq!(*a, cluster(&model, 0.5));
+    }
+
+    #[test]
+    fn disk_cache_round_trips_and_rejects_a_different_model() {
+        let model = leaf_model(&[[0.0, 0.0, 1.0], [2.0, 0.0, 1.0], [2.1, 0.0, 1.0]]);
+        let hlps = cluster(&model, 0.5);
+        assert_eq!(decode(&encode(&hlps), &model), Some(hlps.clone()));
+        let other = leaf_model(&[[0.0, 0.0, 1.0]]);
+        assert_eq!(decode(&encode(&hlps), &other), None);
+        assert_eq!(decode(&encode(&hlps)[..10], &model), None);
     }
 }

@@ -20,6 +20,9 @@ pub struct GpuTam {
 /// The art maps a renderer can use, addressed by index from the style.
 pub struct ArtTextures {
     pub tams: Vec<GpuTam>,
+    /// Every TAM in one 2D array texture, TAM `i`'s tone level `l` at layer `i · levels + l`,
+    /// so a pass can pick the TAM per pixel (hatch pattern per label, thesis Table 9.1).
+    pub all_tams: wgpu::TextureView,
     pub sams: Vec<wgpu::TextureView>,
     pub tam_sampler: wgpu::Sampler,
     pub sam_sampler: wgpu::Sampler,
@@ -29,11 +32,14 @@ pub struct ArtTextures {
 pub const DEFAULT_TAM_STYLES: [TamStyle; 4] =
     [TamStyle::Lines, TamStyle::CrossHatch, TamStyle::Scribble, TamStyle::Stipple];
 
-fn upload_tam(device: &wgpu::Device, queue: &wgpu::Queue, tam: &Tam) -> GpuTam {
+/// Uploads `tams` (same size, levels and mips) into one array texture, tone levels in order.
+fn upload_tams(device: &wgpu::Device, queue: &wgpu::Queue, tams: &[&Tam]) -> GpuTam {
+    let tam = tams[0];
     let mips = tam.levels[0].len() as u32;
+    let layers = tams.iter().map(|t| t.levels.len() as u32).sum();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some("tam"),
-        size: wgpu::Extent3d { width: tam.size, height: tam.size, depth_or_array_layers: tam.levels.len() as u32 },
+        size: wgpu::Extent3d { width: tam.size, height: tam.size, depth_or_array_layers: layers },
         mip_level_count: mips,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -41,7 +47,7 @@ fn upload_tam(device: &wgpu::Device, queue: &wgpu::Queue, tam: &Tam) -> GpuTam {
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    for (layer, level) in tam.levels.iter().enumerate() {
+    for (layer, level) in tams.iter().flat_map(|t| &t.levels).enumerate() {
         for (mip, image) in level.iter().enumerate() {
             let (w, h) = image.dimensions();
             queue.write_texture(
@@ -100,7 +106,7 @@ impl ArtTextures {
         ArtTextures::new(device, queue, &tams, &sams)
     }
 
-    /// Uploads the given art maps.
+    /// Uploads the given art maps (every TAM of the same size, levels and mip count).
     pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, tams: &[Tam], sams: &[Sam]) -> ArtTextures {
         let sampler = |v| {
             device.create_sampler(&wgpu::SamplerDescriptor {
@@ -114,7 +120,8 @@ impl ArtTextures {
             })
         };
         ArtTextures {
-            tams: tams.iter().map(|t| upload_tam(device, queue, t)).collect(),
+            tams: tams.iter().map(|t| upload_tams(device, queue, &[t])).collect(),
+            all_tams: upload_tams(device, queue, &tams.iter().collect::<Vec<_>>()).view,
             sams: sams.iter().map(|s| upload_sam(device, queue, s)).collect(),
             tam_sampler: sampler(wgpu::AddressMode::Repeat),
             sam_sampler: sampler(wgpu::AddressMode::ClampToEdge),

@@ -1,6 +1,6 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
-use super::style::{HatchSpace, Style};
+use super::style::{HatchSpace, STYLE_SLOTS, Style};
 use crate::scene::camera::Camera;
 use bytemuck::{Pod, Zeroable};
 
@@ -97,24 +97,52 @@ pub struct FrameUniform {
     view: [[f32; 4]; 4],
     camera_pos: [f32; 4],
     viewport: [f32; 4],
+    roll: [f32; 4],
+    layers: [LayerUniform; STYLE_SLOTS],
+}
+
+/// The geometry-pass parameters of one style slot (`LayerStyle` in `shaders/gbuffer.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct LayerUniform {
     hlp: [f32; 4],
     hatch: [f32; 4],
 }
 
+impl LayerUniform {
+    /// Packs the geometry-stage fields of a resolved `style`.
+    pub fn new(style: &Style) -> LayerUniform {
+        let image_space = f32::from(u8::from(style.hatch_space == HatchSpace::Image));
+        LayerUniform {
+            hlp: [style.normal_blend, image_space, style.hlp_abstraction, style.color_abstraction],
+            hatch: [style.hatch_tiles, style.hatch_surface, 0.0, style.image_hatch_scale],
+        }
+    }
+}
+
 impl FrameUniform {
-    /// The uniforms for `camera` rendering a `width` × `height` image in `style`.
-    pub fn new(camera: &Camera, style: &Style, width: u32, height: u32) -> FrameUniform {
+    /// The uniforms for `camera` rendering a `width` × `height` image with the resolved style
+    /// of every slot (see [`super::style::FrameStyle::slots`]).
+    pub fn new(camera: &Camera, slots: &[Style], width: u32, height: u32) -> FrameUniform {
         let view = camera.view();
         let p = camera.position;
         let roll = -camera.roll.to_radians();
-        let image_space = f32::from(u8::from(style.hatch_space == HatchSpace::Image));
+        let mut layers = [LayerUniform::new(&Style::default()); STYLE_SLOTS];
+        for (layer, style) in layers.iter_mut().zip(slots) {
+            *layer = LayerUniform::new(style);
+        }
         FrameUniform {
             view_proj: (camera.projection(width as f32 / height as f32) * view).to_cols_array_2d(),
             view: view.to_cols_array_2d(),
             camera_pos: [p[0], p[1], p[2], 1.0],
-            viewport: [(camera.fov.to_radians() * 0.5).tan(), height as f32, width as f32, 0.0],
-            hlp: [style.normal_blend, image_space, roll.cos(), roll.sin()],
-            hatch: [style.hatch_tiles, style.hatch_surface, 0.0, style.image_hatch_scale],
+            viewport: [
+                (camera.fov.to_radians() * 0.5).tan(),
+                height as f32,
+                width as f32,
+                camera.plan_metres_per_pixel(width).unwrap_or(0.0),
+            ],
+            roll: [roll.cos(), roll.sin(), 0.0, 0.0],
+            layers,
         }
     }
 }
@@ -126,6 +154,36 @@ pub struct MaterialUniform {
     pub base_color: [f32; 4],
     /// x: alpha cutoff (negative: opaque), y: part kind (0 terrain, 1 wood, 2 foliage).
     pub params: [f32; 4],
+    /// The material's average colour, linear RGB (abstract colour, thesis 6.2; see
+    /// [`average_color`]).
+    pub average_color: [f32; 4],
+}
+
+/// The average colour of a material, linear RGB: the base colour times the mean of its
+/// texture's texels weighted by their alpha (so the transparent surround of a leaf texture
+/// does not count); the source of abstract colour (thesis 6.2).
+pub fn average_color(material: &crate::scene::plant::Material) -> [f32; 4] {
+    let [r, g, b, a] = material.base_color;
+    let Some(texture) = &material.texture else { return [r, g, b, a] };
+    let linear: Vec<f32> = (0..=255u8)
+        .map(|v| {
+            let c = f32::from(v) / 255.0;
+            if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+        })
+        .collect();
+    let mut sum = [0.0f64; 4];
+    for p in texture.pixels() {
+        let w = f64::from(p[3]) / 255.0;
+        for c in 0..3 {
+            sum[c] += w * f64::from(linear[usize::from(p[c])]);
+        }
+        sum[3] += w;
+    }
+    if sum[3] <= 0.0 {
+        return [r, g, b, a];
+    }
+    let mean = |c: usize| (sum[c] / sum[3]) as f32;
+    [r * mean(0), g * mean(1), b * mean(2), a]
 }
 
 /// One mesh vertex as the geometry pass reads it.
@@ -153,6 +211,9 @@ pub struct Instance {
     pub rotation: [f32; 2],
     pub object_id: u32,
     pub reference_base: u32,
+    /// Screen-door mask of a level-of-detail blend: pixels whose dither value lies in
+    /// `mask[0]..mask[1]` are drawn (`[0, 1]`: all).
+    pub mask: [f32; 2],
 }
 
 /// The geometry pass pipeline and the bind group layouts meshes and frames are bound with.
@@ -238,7 +299,8 @@ impl GeometryPass {
         });
         let vertex_attrs =
             wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x4, 4 => Uint32];
-        let instance_attrs = wgpu::vertex_attr_array![5 => Float32x4, 6 => Float32x2, 7 => Uint32, 8 => Uint32];
+        let instance_attrs =
+            wgpu::vertex_attr_array![5 => Float32x4, 6 => Float32x2, 7 => Uint32, 8 => Uint32, 9 => Float32x2];
         let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("gbuffer"),
@@ -303,6 +365,7 @@ impl GeometryPass {
         gbuffer: &GBuffer,
         frame: &wgpu::BindGroup,
         scene: &super::scene_gpu::SceneGpu,
+        visible: &super::scene_gpu::VisibleSet,
     ) {
         let clear = |view, color| {
             Some(wgpu::RenderPassColorAttachment {
@@ -332,6 +395,6 @@ impl GeometryPass {
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, frame, &[]);
-        scene.draw(&mut pass);
+        scene.draw(&mut pass, visible);
     }
 }

@@ -4,18 +4,22 @@
 
 pub mod art_textures;
 pub mod artmaps;
+pub mod bake;
 pub mod coherence;
 pub mod device;
 pub mod gbuffer;
 pub mod parametrization;
 pub mod post;
+pub mod presets;
+pub mod profile;
+pub mod projection;
 mod readback;
 pub mod renderer;
 pub mod scene_gpu;
 pub mod style;
 
 pub use device::Gpu;
-pub use renderer::Renderer;
+pub use renderer::{RenderOptions, Renderer};
 pub use style::Style;
 
 /// Errors raised while setting up the GPU or rendering a frame.
@@ -41,7 +45,27 @@ pub enum RenderError {
     /// A style names an art map the renderer does not have.
     #[error("style parameter `{field}` = {index} names no art map (there are {count})")]
     UnknownArtMap { field: &'static str, index: usize, count: usize },
+    /// Data layers that cannot be drawn (too many mappings, an unsupported target, a field that
+    /// cannot be placed in the scene).
+    #[error("data layers: {0}")]
+    Data(String),
+    /// Renderer options are inconsistent.
+    #[error("invalid renderer options: {0}")]
+    Options(String),
     /// A style parameter is outside its allowed range.
     #[error("style parameter `{field}` = {value} is out of range ({range})")]
     Style { field: &'static str, value: f32, range: &'static str },
+    /// A style field has the wrong type, or the style names an unknown field (`field` is
+    /// `None` when the error is about the object as a whole).
+    #[error("invalid style{}: {message}", field.as_ref().map(|f| format!(" parameter `{f}`")).unwrap_or_default())]
+    StyleField { field: Option<String>, message: String },
+    /// A style preset name that does not exist.
+    #[error("unknown style preset `{name}`; presets: {known}")]
+    UnknownPreset { name: String, known: String },
+    /// A per-layer style for a layer the scene does not have.
+    #[error("style layer `{name}` is not a layer of this scene; layers: {known}")]
+    UnknownLayer { name: String, known: String },
+    /// A per-layer style for a vegetation layer beyond the style slots.
+    #[error("style layer `{name}`: only the first {max} vegetation layers can have styles of their own")]
+    LayerSlots { name: String, max: usize },
 }

@@ -29,6 +29,8 @@ pub enum Input {
     FilteredArray,
     /// A filtering sampler.
     Sampler,
+    /// A uniform buffer of the pass's own.
+    Uniform,
 }
 
 impl Input {
@@ -52,6 +54,7 @@ impl Input {
                 ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                 count: None,
             },
+            Input::Uniform => uniform_layout_entry(binding),
         }
     }
 }
@@ -66,7 +69,7 @@ pub struct FullscreenPass {
 impl FullscreenPass {
     /// Builds a pass from a WGSL source (prefixed with the shared vertex stage and uniform
     /// block), its fragment entry point, its inputs in binding order and its output format.
-    fn new(
+    pub(crate) fn new(
         device: &wgpu::Device,
         label: &'static str,
         source: &str,
@@ -137,18 +140,37 @@ impl FullscreenPass {
         })
     }
 
-    /// Records the pass: every pixel of `target` is written.
+    /// Records the pass: every pixel of `target` is written (or cleared, where the shader
+    /// discards).
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::TextureView, bind_group: &wgpu::BindGroup) {
+        self.record(encoder, target, bind_group, wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT));
+    }
+
+    /// Records the pass over what `target` holds: pixels the shader discards keep their value
+    /// (the compose pass of a further art-map group).
+    pub fn encode_over(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        bind_group: &wgpu::BindGroup,
+    ) {
+        self.record(encoder, target, bind_group, wgpu::LoadOp::Load);
+    }
+
+    fn record(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        bind_group: &wgpu::BindGroup,
+        load: wgpu::LoadOp<wgpu::Color>,
+    ) {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(self.label),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                 view: target,
                 depth_slice: None,
                 resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
+                ops: wgpu::Operations { load, store: wgpu::StoreOp::Store },
             })],
             depth_stencil_attachment: None,
             timestamp_writes: None,
@@ -174,29 +196,43 @@ pub fn prefilter(device: &wgpu::Device) -> FullscreenPass {
 }
 
 /// The contour and tone pass (`shaders/contour.wgsl`, thesis eq. 5.1, 6.7).
-/// Inputs: linear depth (raw or pre-filtered), albedo, normal.
+/// Inputs: linear depth (raw or pre-filtered), albedo, normal, IDs (the style slot per pixel).
 pub fn contour(device: &wgpu::Device) -> FullscreenPass {
     FullscreenPass::new(
         device,
         "contour",
         include_str!("../../../shaders/contour.wgsl"),
         "fs_contour",
-        &[Input::Float, Input::Float, Input::Float],
+        &[Input::Float, Input::Float, Input::Float, Input::Uint],
         CONTOUR_FORMAT,
     )
 }
 
-/// The compose pass (`shaders/compose.wgsl`). Inputs: contour + tone, depth + HLP radius, IDs,
-/// hatch coordinates + E, normal + tiles per pixel, albedo, TAM array, SAM, TAM sampler, SAM
-/// sampler.
+/// The compose pass (`shaders/compose.wgsl` with `shaders/data_common.wgsl`). Inputs: contour +
+/// tone, depth + HLP radius, IDs, hatch coordinates + E, normal + tiles per pixel, albedo, the
+/// array of all TAMs, SAM, TAM sampler, SAM sampler, data layers
+/// ([`super::projection::DATA_FORMAT`]).
 pub fn compose(device: &wgpu::Device) -> FullscreenPass {
     use Input::*;
     FullscreenPass::new(
         device,
         "compose",
-        include_str!("../../../shaders/compose.wgsl"),
+        concat!(include_str!("../../../shaders/data_common.wgsl"), "\n", include_str!("../../../shaders/compose.wgsl")),
         "fs_compose",
-        &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler],
+        &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint],
+        OUTPUT_FORMAT,
+    )
+}
+
+/// A plain copy of one texture (`shaders/copy.wgsl`): the cheapest possible full-screen pass,
+/// the floor the benchmark compares the NPR passes with. Inputs: the source (output format).
+pub fn copy(device: &wgpu::Device) -> FullscreenPass {
+    FullscreenPass::new(
+        device,
+        "copy",
+        include_str!("../../../shaders/copy.wgsl"),
+        "fs_copy",
+        &[Input::Float],
         OUTPUT_FORMAT,
     )
 }

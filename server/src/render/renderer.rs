@@ -5,9 +5,13 @@ use super::art_textures::ArtTextures;
 use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, render_target};
 use super::parametrization::ReferenceCoords;
 use super::post::{self, CONTOUR_FORMAT, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT};
-use super::scene_gpu::SceneGpu;
-use super::style::{PostParams, Style};
+use super::profile::{PassTimes, Recorder};
+use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
+use super::scene_gpu::{DrawStats, SceneGpu};
+use super::style::{FrameStyle, PostParams, PostUniform, STYLE_SLOTS, Style, art_groups};
 use super::{Gpu, RenderError, readback};
+use crate::prep::cache::DiskCache;
+use crate::prep::lod::LodSettings;
 use crate::scene::Scene;
 use crate::scene::camera::Camera;
 use std::sync::Arc;
@@ -22,9 +26,14 @@ pub struct Renderer {
     prefilter: FullscreenPass,
     contour: FullscreenPass,
     compose: FullscreenPass,
+    copy: FullscreenPass,
+    projection: ProjectionPass,
     scene: SceneGpu,
+    lod: LodSettings,
     art: ArtTextures,
     sun: glam::Vec3,
+    /// Names of the scene's vegetation layers, in layer-code order (per-layer styles).
+    layer_names: Vec<String>,
 }
 
 /// A wgpu error with all its causes on one line.
@@ -47,6 +56,16 @@ pub struct ViewState {
     buffer: wgpu::Buffer,
 }
 
+/// Options fixed for the lifetime of a [`Renderer`].
+#[derive(Debug, Clone, Default)]
+pub struct RenderOptions {
+    /// When each plant level of detail is drawn.
+    pub lod: LodSettings,
+    /// Disk cache of preprocessing results (HLPs, baked billboards); `None` keeps them in the
+    /// process only.
+    pub cache: Option<Arc<DiskCache>>,
+}
+
 /// A rendered frame with its linear depth (metres, row-major), for motion-compensated
 /// comparisons of consecutive frames.
 pub struct FrameWithDepth {
@@ -55,25 +74,37 @@ pub struct FrameWithDepth {
 }
 
 impl Renderer {
-    /// Compiles the pipelines, generates the default art maps and uploads `scene` to the GPU.
-    pub fn new(gpu: Arc<Gpu>, scene: &Scene) -> Renderer {
+    /// Compiles the pipelines, generates the default art maps and uploads `scene` to the GPU
+    /// with the default [`RenderOptions`] (no disk cache).
+    pub fn new(gpu: Arc<Gpu>, scene: &Scene) -> Result<Renderer, RenderError> {
+        Renderer::with_options(gpu, scene, &RenderOptions::default())
+    }
+
+    /// [`Renderer::new`] with explicit options: levels of detail and the preprocessing cache.
+    pub fn with_options(gpu: Arc<Gpu>, scene: &Scene, options: &RenderOptions) -> Result<Renderer, RenderError> {
+        options.lod.validate().map_err(RenderError::Options)?;
         let geometry = GeometryPass::new(&gpu.device);
-        let scene_gpu = SceneGpu::new(&gpu.device, &gpu.queue, &geometry, scene);
-        Renderer {
+        let scene_gpu = SceneGpu::new(&gpu, &geometry, scene, options.cache.as_deref())?;
+        Ok(Renderer {
             sun: scene.sun.direction(),
+            layer_names: scene.layers.iter().map(|l| l.name.clone()).collect(),
             prefilter: post::prefilter(&gpu.device),
             contour: post::contour(&gpu.device),
             compose: post::compose(&gpu.device),
+            copy: post::copy(&gpu.device),
+            projection: ProjectionPass::new(&gpu, scene),
             art: ArtTextures::defaults(&gpu.device, &gpu.queue),
             gpu,
             geometry,
             scene: scene_gpu,
-        }
+            lod: options.lod,
+        })
     }
 
-    /// Triangles the geometry pass submits per frame.
-    pub fn triangles_per_frame(&self) -> u64 {
-        self.scene.triangles()
+    /// What the geometry pass would draw for `camera`: plants culled and drawn per level of
+    /// detail, triangles submitted and the source geometry (the seeds' Table 8.1 figures).
+    pub fn draw_stats(&self, camera: &Camera, width: u32, height: u32) -> DrawStats {
+        self.scene.cull(&self.gpu.device, camera, width, height, &self.lod).stats
     }
 
     /// Number of tonal art maps (`Style::hatch_map` indexes them) and silhouette art maps
@@ -82,31 +113,35 @@ impl Renderer {
         (self.art.tams.len(), self.art.sams.len())
     }
 
-    fn check(&self, style: &Style, width: u32, height: u32) -> Result<(), RenderError> {
+    /// Checks the size and every style of the frame; returns the resolved style of every slot.
+    fn check(&self, styles: &FrameStyle, width: u32, height: u32) -> Result<Vec<Style>, RenderError> {
         let max = self.gpu.device.limits().max_texture_dimension_2d;
         if width == 0 || height == 0 || width > max || height > max {
             return Err(RenderError::Size { width, height, max });
         }
-        style.validate()?;
         let (tams, sams) = self.art_map_counts();
-        if style.hatch_map >= tams {
-            return Err(RenderError::UnknownArtMap { field: "hatch_map", index: style.hatch_map, count: tams });
+        for style in styles.styles() {
+            style.validate()?;
+            if style.hatch_map >= tams {
+                return Err(RenderError::UnknownArtMap { field: "hatch_map", index: style.hatch_map, count: tams });
+            }
+            if style.silhouette_map >= sams {
+                return Err(RenderError::UnknownArtMap {
+                    field: "silhouette_map",
+                    index: style.silhouette_map,
+                    count: sams,
+                });
+            }
         }
-        if style.silhouette_map >= sams {
-            return Err(RenderError::UnknownArtMap {
-                field: "silhouette_map",
-                index: style.silhouette_map,
-                count: sams,
-            });
-        }
-        Ok(())
+        styles.slots(&self.layer_names)
     }
 
-    /// Binds the frame uniforms of `camera` and the reference coordinates `references`.
+    /// Binds the frame uniforms of `camera` with the styles of `slots` and the reference
+    /// coordinates `references`.
     fn frame_bind_group(
         &self,
         camera: &Camera,
-        style: &Style,
+        slots: &[Style],
         width: u32,
         height: u32,
         references: &wgpu::Buffer,
@@ -114,7 +149,7 @@ impl Renderer {
         let device = &self.gpu.device;
         let frame_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("frame"),
-            contents: bytemuck::bytes_of(&FrameUniform::new(camera, style, width, height)),
+            contents: bytemuck::bytes_of(&FrameUniform::new(camera, slots, width, height)),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -140,32 +175,115 @@ impl Renderer {
     /// The object ID of every pixel (row-major; see [`super::gbuffer::object_id`]), from the
     /// G-buffer pass alone: for picking the plant under a pointer, and for tests.
     pub fn object_ids(&self, camera: &Camera, width: u32, height: u32) -> Result<Vec<u32>, RenderError> {
-        let style = Style::default();
-        self.check(&style, width, height)?;
+        let slots = self.check(&FrameStyle::default(), width, height)?;
         self.scoped(|| {
             let device = &self.gpu.device;
             let gbuffer = GBuffer::new(device, width, height);
-            let frame = self.frame_bind_group(camera, &style, width, height, self.scene.zero_references());
+            let frame = self.frame_bind_group(camera, &slots, width, height, self.scene.zero_references());
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ids") });
-            self.geometry.encode(&mut encoder, &gbuffer, &frame, &self.scene);
+            let visible = self.scene.cull(device, camera, width, height, &self.lod);
+            self.geometry.encode(&mut encoder, &gbuffer, &frame, &self.scene, &visible);
             self.gpu.queue.submit([encoder.finish()]);
             let texels = readback::read_texels(&self.gpu, &gbuffer.id_texture, width, height, 8)?;
             Ok(texels.chunks_exact(8).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect())
         })
     }
 
-    /// Renders a `width` × `height` pen-and-ink image of the scene seen from `camera`. Without
+    /// Renders a `width` × `height` image of the scene seen from `camera` in `style`: a
+    /// [`Style`] (`&style`) or a [`FrameStyle`] with styles per layer (thesis 8.2.8). Without
     /// history, every HLP's reference texture coordinates are zero, so the same request always
     /// gives the same image.
     pub fn render(
         &self,
         camera: &Camera,
-        style: &Style,
+        style: impl Into<FrameStyle>,
         width: u32,
         height: u32,
     ) -> Result<image::RgbaImage, RenderError> {
-        self.check(style, width, height)?;
-        self.scoped(|| Ok(self.render_frame(camera, style, width, height, self.scene.zero_references(), false)?.image))
+        self.render_with_data(camera, style, width, height, &DataView::default())
+    }
+
+    /// [`Renderer::render`] with data layers projected onto the landscape (thesis 9.3).
+    pub fn render_with_data(
+        &self,
+        camera: &Camera,
+        style: impl Into<FrameStyle>,
+        width: u32,
+        height: u32,
+        data: &DataView,
+    ) -> Result<image::RgbaImage, RenderError> {
+        let slots = self.check(&style.into(), width, height)?;
+        ProjectionPass::check(data)?;
+        let references = self.scene.zero_references();
+        self.scoped(|| Ok(self.render_frame(camera, &slots, width, height, references, data, false, None)?.image))
+    }
+
+    /// [`Renderer::render`] timing every pass (see [`super::profile`]): slower than a plain
+    /// frame, because each pass waits for the previous one; for the benchmark.
+    pub fn render_profiled(
+        &self,
+        camera: &Camera,
+        style: impl Into<FrameStyle>,
+        width: u32,
+        height: u32,
+    ) -> Result<(image::RgbaImage, PassTimes), RenderError> {
+        let slots = self.check(&style.into(), width, height)?;
+        let references = self.scene.zero_references();
+        let mut times = PassTimes::new();
+        let data = DataView::default();
+        let frame = self
+            .scoped(|| self.render_frame(camera, &slots, width, height, references, &data, false, Some(&mut times)))?;
+        Ok((frame.image, times))
+    }
+
+    /// Wall times (ms) of `runs` plain full-screen copy passes at `width` × `height`: the floor
+    /// any post-processing pass costs on this adapter.
+    pub fn time_copy_pass(&self, width: u32, height: u32, runs: usize) -> Result<Vec<f64>, RenderError> {
+        self.check(&FrameStyle::from(&Style::default()), width, height)?;
+        let device = &self.gpu.device;
+        let source =
+            render_target(device, "copy source", OUTPUT_FORMAT, width, height).create_view(&Default::default());
+        let target =
+            render_target(device, "copy target", OUTPUT_FORMAT, width, height).create_view(&Default::default());
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("copy uniform"),
+            size: std::mem::size_of::<PostUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM,
+            mapped_at_creation: false,
+        });
+        let inputs = self.copy.bind_group(device, &uniform, &[wgpu::BindingResource::TextureView(&source)]);
+        self.scoped(|| {
+            (0..runs.max(1) + 1)
+                .map(|_| {
+                    let mut times = PassTimes::new();
+                    let mut recorder = Recorder::new(&self.gpu, Some(&mut times));
+                    self.copy.encode(recorder.encoder(), &target, &inputs);
+                    recorder.mark("copy")?;
+                    recorder.submit();
+                    Ok(times[0].1)
+                })
+                .skip(1)
+                .collect()
+        })
+    }
+
+    /// Estimated GPU memory in bytes: the scene's buffers and textures plus the render targets
+    /// of one `width` × `height` frame.
+    pub fn gpu_bytes(&self, width: u32, height: u32) -> u64 {
+        let formats = [
+            super::gbuffer::ALBEDO_FORMAT,
+            super::gbuffer::NORMAL_FORMAT,
+            super::gbuffer::LINEAR_DEPTH_FORMAT,
+            super::gbuffer::ID_FORMAT,
+            super::gbuffer::HATCH_FORMAT,
+            super::gbuffer::DEPTH_FORMAT,
+            PREFILTER_FORMAT,
+            CONTOUR_FORMAT,
+            DATA_FORMAT,
+            OUTPUT_FORMAT,
+        ];
+        let per_pixel: u64 = formats.iter().map(|f| u64::from(f.target_pixel_byte_cost().unwrap_or(4))).sum();
+        self.scene.gpu_bytes() + per_pixel * u64::from(width) * u64::from(height)
     }
 
     /// A fresh per-view state for [`Renderer::render_view`].
@@ -181,33 +299,40 @@ impl Renderer {
     }
 
     /// Renders the next frame of an animated view: first moves the hatching reference
-    /// coordinates with the camera (thesis eq. 6.2), then renders with them. Returns the depth
-    /// too when `with_depth` is set.
+    /// coordinates with the camera (thesis eq. 6.2), then renders with them and the data
+    /// layers of `data`. Returns the depth too when `with_depth` is set.
+    #[allow(clippy::too_many_arguments)]
     pub fn render_view(
         &self,
         state: &mut ViewState,
         camera: &Camera,
-        style: &Style,
+        style: impl Into<FrameStyle>,
         width: u32,
         height: u32,
+        data: &DataView,
         with_depth: bool,
     ) -> Result<FrameWithDepth, RenderError> {
-        self.check(style, width, height)?;
-        state.references.update(glam::Vec3::from(camera.position), style.hatch_tiles);
+        let slots = self.check(&style.into(), width, height)?;
+        ProjectionPass::check(data)?;
+        // The reference coordinates are in the base style's tiles (layers share them).
+        state.references.update(glam::Vec3::from(camera.position), slots[0].hatch_tiles);
         if !state.references.as_slice().is_empty() {
             self.gpu.queue.write_buffer(&state.buffer, 0, bytemuck::cast_slice(state.references.as_slice()));
         }
-        self.scoped(|| self.render_frame(camera, style, width, height, &state.buffer, with_depth))
+        self.scoped(|| self.render_frame(camera, &slots, width, height, &state.buffer, data, with_depth, None))
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn render_frame(
         &self,
         camera: &Camera,
-        style: &Style,
+        slots: &[Style],
         width: u32,
         height: u32,
         references: &wgpu::Buffer,
+        data: &DataView,
         with_depth: bool,
+        times: Option<&mut PassTimes>,
     ) -> Result<FrameWithDepth, RenderError> {
         let device = &self.gpu.device;
         let started = std::time::Instant::now();
@@ -216,51 +341,97 @@ impl Renderer {
             .create_view(&Default::default());
         let contours =
             render_target(device, "contours", CONTOUR_FORMAT, width, height).create_view(&Default::default());
+        let data_layers =
+            render_target(device, "data layers", DATA_FORMAT, width, height).create_view(&Default::default());
         let output = render_target(device, "output", OUTPUT_FORMAT, width, height);
         let output_view = output.create_view(&Default::default());
 
-        let frame = self.frame_bind_group(camera, style, width, height, references);
-        let tam = &self.art.tams[style.hatch_map];
-        let params = PostParams::new(style, self.sun, camera.roll.to_radians(), tam.levels, tam.size);
-        let post_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("post"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
+        let frame = self.frame_bind_group(camera, slots, width, height, references);
+        // One post uniform block per silhouette-art-map group, each with the styles of all
+        // slots; the compose pass runs once per group (thesis 8.2.8, see `art_groups`).
+        let style = &slots[0];
+        let (sams, slot_groups) = art_groups(slots);
+        let params: [PostParams; STYLE_SLOTS] = std::array::from_fn(|i| {
+            let tam = &self.art.tams[slots[i].hatch_map];
+            PostParams::new(&slots[i], self.sun, camera.roll.to_radians(), tam.levels, tam.size, slot_groups[i])
         });
+        let post_buffers: Vec<wgpu::Buffer> = (0..sams.len())
+            .map(|group| {
+                let uniform = PostUniform::new(params, camera, width, height, group as u32);
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("post"),
+                    contents: bytemuck::bytes_of(&uniform),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                })
+            })
+            .collect();
+        let post_buffer = &post_buffers[0];
         let view = wgpu::BindingResource::TextureView;
         let depth_for_contours = if style.contour_prefilter { &prefiltered } else { &gbuffer.linear_depth };
-        let prefilter_inputs = self.prefilter.bind_group(device, &post_buffer, &[view(&gbuffer.linear_depth)]);
+        let prefilter_inputs = self.prefilter.bind_group(device, post_buffer, &[view(&gbuffer.linear_depth)]);
         let contour_inputs = self.contour.bind_group(
             device,
-            &post_buffer,
-            &[view(depth_for_contours), view(&gbuffer.albedo), view(&gbuffer.normal)],
+            post_buffer,
+            &[view(depth_for_contours), view(&gbuffer.albedo), view(&gbuffer.normal), view(&gbuffer.id)],
         );
-        let compose_inputs = self.compose.bind_group(
-            device,
-            &post_buffer,
-            &[
-                view(&contours),
-                view(&gbuffer.linear_depth),
-                view(&gbuffer.id),
-                view(&gbuffer.hatch),
-                view(&gbuffer.normal),
-                view(&gbuffer.albedo),
-                view(&tam.view),
-                view(&self.art.sams[style.silhouette_map]),
-                wgpu::BindingResource::Sampler(&self.art.tam_sampler),
-                wgpu::BindingResource::Sampler(&self.art.sam_sampler),
-            ],
-        );
+        let compose_inputs: Vec<wgpu::BindGroup> = sams
+            .iter()
+            .zip(&post_buffers)
+            .map(|(&sam, buffer)| {
+                self.compose.bind_group(
+                    device,
+                    buffer,
+                    &[
+                        view(&contours),
+                        view(&gbuffer.linear_depth),
+                        view(&gbuffer.id),
+                        view(&gbuffer.hatch),
+                        view(&gbuffer.normal),
+                        view(&gbuffer.albedo),
+                        view(&self.art.all_tams),
+                        view(&self.art.sams[sam]),
+                        wgpu::BindingResource::Sampler(&self.art.tam_sampler),
+                        wgpu::BindingResource::Sampler(&self.art.sam_sampler),
+                        view(&data_layers),
+                    ],
+                )
+            })
+            .collect();
+        let data_inputs = DataInputs {
+            camera,
+            width,
+            height,
+            tams: (style.hatch_map, self.art.tams.len()),
+            layer_tams: slots.iter().any(|s| s.hatch_map != style.hatch_map),
+            post: post_buffer,
+            depth: &gbuffer.linear_depth,
+            ids: &gbuffer.id,
+        };
 
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        self.geometry.encode(&mut encoder, &gbuffer, &frame, &self.scene);
+        let mut recorder = Recorder::new(&self.gpu, times);
+        let visible = self.scene.cull(device, camera, width, height, &self.lod);
+        recorder.mark("cull")?;
+        self.geometry.encode(recorder.encoder(), &gbuffer, &frame, &self.scene, &visible);
+        recorder.mark("geometry")?;
         if style.contour_prefilter {
-            self.prefilter.encode(&mut encoder, &prefiltered, &prefilter_inputs);
+            self.prefilter.encode(recorder.encoder(), &prefiltered, &prefilter_inputs);
+            recorder.mark("prefilter")?;
         }
-        self.contour.encode(&mut encoder, &contours, &contour_inputs);
-        self.compose.encode(&mut encoder, &output_view, &compose_inputs);
-        self.gpu.queue.submit([encoder.finish()]);
+        self.contour.encode(recorder.encoder(), &contours, &contour_inputs);
+        recorder.mark("contour")?;
+        self.projection.encode(&self.gpu, recorder.encoder(), &data_layers, &data_inputs, data)?;
+        recorder.mark("data")?;
+        for (group, inputs) in compose_inputs.iter().enumerate() {
+            if group == 0 {
+                self.compose.encode(recorder.encoder(), &output_view, inputs);
+            } else {
+                self.compose.encode_over(recorder.encoder(), &output_view, inputs);
+            }
+        }
+        recorder.mark("compose")?;
+        let mut timer = recorder.submit();
         let image = readback::read_rgba8(&self.gpu, &output, width, height)?;
+        timer.mark("readback");
         let depth = if with_depth {
             let texels = readback::read_texels(&self.gpu, &gbuffer.linear_depth_texture, width, height, 8)?;
             texels.chunks_exact(8).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect()
@@ -271,7 +442,8 @@ impl Renderer {
             width,
             height,
             ms = started.elapsed().as_secs_f64() * 1e3,
-            triangles = self.scene.triangles(),
+            triangles = visible.stats.triangles,
+            plants = visible.stats.plants_drawn,
             "frame rendered"
         );
         Ok(FrameWithDepth { image, depth })

@@ -1,15 +1,34 @@
-//! GPU-side copy of a scene: vertex/index buffers per mesh, textures, material bind groups and
-//! one instance buffer, all built once per scene and reused by every frame.
+//! GPU-side copy of a scene: vertex/index buffers per mesh and level of detail, textures,
+//! baked billboard atlases and material bind groups, all built once per scene. Each frame only
+//! culls the plant instances against the view frustum, picks every visible plant's level of
+//! detail from its projected size (`prep::lod`) and uploads the resulting instance list.
 
-use super::gbuffer::{GeometryPass, Instance, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex, object_id};
+use super::bake::{BakeDraw, BakeTile, Baker};
+use super::gbuffer::{
+    GeometryPass, Instance, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex, average_color, object_id,
+};
+use super::{Gpu, RenderError};
+use crate::prep::cache::{DiskCache, KeyBuilder};
 use crate::prep::hlp::{self, Sphere};
+use crate::prep::lod::{self, Atlas, Billboard, LodLevel, LodSettings};
 use crate::scene::Scene;
+use crate::scene::camera::Camera;
 use crate::scene::mesh::Mesh;
-use crate::scene::plant::{Material, PartKind};
+use crate::scene::plant::{Material, PartKind, PlantModel};
+use glam::Vec3;
+use serde::Serialize;
 use std::collections::HashMap;
 use std::ops::Range;
 use std::sync::Arc;
+use tracing::info;
 use wgpu::util::DeviceExt;
+
+/// Pixel size of one billboard atlas tile.
+const BILLBOARD_TILE: u32 = 64;
+/// Sides of the fitted trunk prism.
+const TRUNK_SIDES: usize = 6;
+/// Alpha below which billboard texels are cut away.
+const BILLBOARD_ALPHA_CUTOFF: f32 = 0.35;
 
 /// One uploaded mesh with its material.
 struct GpuMesh {
@@ -19,32 +38,86 @@ struct GpuMesh {
     material: wgpu::BindGroup,
 }
 
-/// A run of instances of one species in the instance buffer.
-struct Batch {
+/// What a surface is, as the G-buffer pass distinguishes it (`Material.params.y` in
+/// `shaders/gbuffer.wgsl`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Surface {
+    Terrain = 0,
+    Wood = 1,
+    Foliage = 2,
+    /// A billboard of an HLP or a whole plant: shaded as its HLP sphere.
+    Billboard = 3,
+}
+
+impl From<PartKind> for Surface {
+    fn from(kind: PartKind) -> Surface {
+        match kind {
+            PartKind::Wood => Surface::Wood,
+            PartKind::Foliage => Surface::Foliage,
+        }
+    }
+}
+
+/// One species on the GPU: its meshes at every level of detail.
+struct SpeciesGpu {
+    levels: [Vec<GpuMesh>; 3],
+    triangles: [u64; 3],
+    /// Bounding sphere of the model (model space), for culling.
+    bounds: Sphere,
+    /// Height of the model, for its projected size.
+    height: f32,
+}
+
+/// One plant: its species and its instance data.
+#[derive(Clone, Copy)]
+struct Plant {
     species: usize,
-    instances: Range<u32>,
+    instance: Instance,
+}
+
+/// Counts of a frame's geometry: what the seeds' Table 8.1 reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct DrawStats {
+    /// Plants in the scene.
+    pub plants: u64,
+    /// Plants inside the view frustum and large enough to draw.
+    pub plants_drawn: u64,
+    /// Plant draws per level of detail (full, HLP billboards, plant billboard); a plant in a
+    /// blend band counts at both levels.
+    pub per_level: [u64; 3],
+    /// Triangles submitted, terrain included.
+    pub triangles: u64,
+    /// Triangles of the full scene (every plant at full detail, and the terrain).
+    pub source_triangles: u64,
+}
+
+impl DrawStats {
+    /// Submitted triangles as a percentage of the source geometry (the seeds' "% lod").
+    pub fn percent_drawn(&self) -> f64 {
+        100.0 * self.triangles as f64 / self.source_triangles.max(1) as f64
+    }
+}
+
+/// The plants one frame draws: a per-frame instance buffer in (species, level) runs.
+pub struct VisibleSet {
+    instances: wgpu::Buffer,
+    batches: Vec<(usize, LodLevel, Range<u32>)>,
+    pub stats: DrawStats,
 }
 
 /// Everything the geometry pass draws, resident on the GPU.
 pub struct SceneGpu {
     terrain: GpuMesh,
-    species: Vec<Vec<GpuMesh>>,
-    instances: wgpu::Buffer,
-    batches: Vec<Batch>,
-    triangles: u64,
-    /// World-space centre of every (instance, HLP) pair, in reference-buffer order.
-    reference_centers: Vec<glam::Vec3>,
+    species: Vec<SpeciesGpu>,
+    plants: Vec<Plant>,
+    source_triangles: u64,
+    /// World-space centre of every (instance, HLP) pair, in reference-buffer order; each
+    /// plant's HLPs are followed by one entry for the whole plant (its far level of detail).
+    reference_centers: Vec<Vec3>,
     /// All-zero reference coordinates for stateless frames.
     zero_references: wgpu::Buffer,
-}
-
-/// Part kind code stored in the G-buffer normal's w (see `shaders/gbuffer.wgsl`).
-fn kind_code(kind: Option<PartKind>) -> f32 {
-    match kind {
-        None => 0.0,
-        Some(PartKind::Wood) => 1.0,
-        Some(PartKind::Foliage) => 2.0,
-    }
+    /// GPU memory of everything above.
+    gpu_bytes: u64,
 }
 
 /// Uploads an sRGB RGBA image with a full mip chain (box-filtered on the CPU).
@@ -92,6 +165,8 @@ struct Uploader<'a> {
     pass: &'a GeometryPass,
     textures: HashMap<*const image::RgbaImage, wgpu::TextureView>,
     white: wgpu::TextureView,
+    /// Bytes of GPU memory uploaded so far (buffers, textures with their mip chains).
+    bytes: u64,
 }
 
 impl Uploader<'_> {
@@ -101,7 +176,7 @@ impl Uploader<'_> {
         mesh: &Mesh,
         hlp: Option<(&[u32], &[Sphere])>,
         material: &Material,
-        kind: Option<PartKind>,
+        surface: Surface,
     ) -> GpuMesh {
         let vertices: Vec<Vertex> = (0..mesh.positions.len())
             .map(|i| {
@@ -121,6 +196,7 @@ impl Uploader<'_> {
                 }
             })
             .collect();
+        self.bytes += (std::mem::size_of_val(vertices.as_slice()) + 4 * mesh.indices.len()) as u64;
         let vertices = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vertices"),
             contents: bytemuck::cast_slice(&vertices),
@@ -133,7 +209,8 @@ impl Uploader<'_> {
         });
         let uniform = MaterialUniform {
             base_color: material.base_color,
-            params: [material.alpha_cutoff.unwrap_or(-1.0), kind_code(kind), 0.0, 0.0],
+            params: [material.alpha_cutoff.unwrap_or(-1.0), surface as u32 as f32, 0.0, 0.0],
+            average_color: average_color(material),
         };
         let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("material"),
@@ -142,8 +219,13 @@ impl Uploader<'_> {
         });
         let view = match &material.texture {
             Some(image) => {
-                let (device, queue) = (self.device, self.queue);
-                self.textures.entry(Arc::as_ptr(image)).or_insert_with(|| upload_texture(device, queue, image)).clone()
+                let (device, queue, bytes) = (self.device, self.queue, &mut self.bytes);
+                let upload = || {
+                    // A full mip chain adds a third to the base level.
+                    *bytes += u64::from(image.width()) * u64::from(image.height()) * 16 / 3;
+                    upload_texture(device, queue, image)
+                };
+                self.textures.entry(Arc::as_ptr(image)).or_insert_with(upload).clone()
             }
             None => self.white.clone(),
         };
@@ -160,11 +242,47 @@ impl Uploader<'_> {
     }
 }
 
+/// A content key for a species' baked billboards: geometry, textures, HLPs and bake settings.
+fn bake_key(model: &PlantModel, hlp_radius: f32) -> String {
+    let mut key = KeyBuilder::default().bytes(b"billboards v1").u64(hlp::model_hash(model)).f32(hlp_radius);
+    key = key.u64(u64::from(BILLBOARD_TILE));
+    for part in &model.parts {
+        let m = &part.material;
+        key = m.base_color.iter().fold(key, |k, c| k.f32(*c)).f32(m.alpha_cutoff.unwrap_or(-1.0));
+        for uv in &part.mesh.uvs {
+            key = key.f32(uv[0]).f32(uv[1]);
+        }
+        if let Some(texture) = &m.texture {
+            key = key.u64(u64::from(texture.width())).bytes(texture.as_raw());
+        }
+    }
+    key.finish()
+}
+
+fn encode_png(image: &image::RgbaImage) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    // Encoding an in-memory RGBA image to PNG cannot fail; an empty entry is recomputed.
+    let _ = image.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png);
+    bytes
+}
+
+fn decode_png(bytes: &[u8], size: (u32, u32)) -> Option<image::RgbaImage> {
+    let image = image::load_from_memory_with_format(bytes, image::ImageFormat::Png).ok()?.to_rgba8();
+    (image.dimensions() == size).then_some(image)
+}
+
 impl SceneGpu {
-    /// Uploads the terrain, every species' model and all plant instances of `scene`.
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, pass: &GeometryPass, scene: &Scene) -> SceneGpu {
+    /// Uploads the terrain, every species' model at all levels of detail (baking billboard
+    /// atlases, or loading them from `disk`) and the plant instances of `scene`.
+    pub fn new(
+        gpu: &Gpu,
+        pass: &GeometryPass,
+        scene: &Scene,
+        disk: Option<&DiskCache>,
+    ) -> Result<SceneGpu, RenderError> {
+        let (device, queue) = (&gpu.device, &gpu.queue);
         let white = upload_texture(device, queue, &image::RgbaImage::from_pixel(1, 1, image::Rgba([255; 4])));
-        let mut up = Uploader { device, queue, pass, textures: HashMap::new(), white };
+        let mut up = Uploader { device, queue, pass, textures: HashMap::new(), white, bytes: 0 };
         let [r, g, b] = scene.terrain.albedo;
         let terrain_material = Material {
             name: "terrain".into(),
@@ -173,93 +291,195 @@ impl SceneGpu {
             alpha_cutoff: None,
             double_sided: false,
         };
-        let terrain = up.mesh(&scene.terrain.mesh, None, &terrain_material, None);
-        let clusters: Vec<_> = scene.species.iter().map(|s| hlp::cluster_cached(&s.model, s.hlp_radius)).collect();
-        let species = scene
-            .species
-            .iter()
-            .zip(&clusters)
-            .map(|(s, hlps)| {
-                s.model
-                    .parts
-                    .iter()
-                    .zip(&hlps.triangle_hlp)
-                    .map(|(part, triangle_hlp)| match part.kind {
-                        PartKind::Foliage => {
-                            let split = hlp::split_by_hlp(&part.mesh, triangle_hlp);
-                            up.mesh(&split.mesh, Some((&split.hlp, &hlps.spheres)), &part.material, Some(part.kind))
-                        }
-                        PartKind::Wood => up.mesh(&part.mesh, None, &part.material, Some(part.kind)),
-                    })
-                    .collect()
-            })
-            .collect();
+        let terrain = up.mesh(&scene.terrain.mesh, None, &terrain_material, Surface::Terrain);
+        let baker = Baker::new(device, &pass.material_layout);
+        let mut species = Vec::with_capacity(scene.species.len());
+        let mut hlp_counts = Vec::with_capacity(scene.species.len());
+        let mut plant_boards = Vec::with_capacity(scene.species.len());
+        for s in &scene.species {
+            let hlps = hlp::cluster_cached(&s.model, s.hlp_radius, disk);
+            let board = Billboard::of_model(&s.model);
+            species.push(Self::upload_species(
+                gpu,
+                &mut up,
+                &baker,
+                &s.model,
+                s.hlp_radius,
+                &hlps.spheres,
+                board,
+                disk,
+            )?);
+            hlp_counts.push(hlps.spheres.len());
+            plant_boards.push((hlps, board));
+        }
 
-        let mut instances = vec![Instance {
-            offset_scale: [0.0, 0.0, 0.0, 1.0],
-            rotation: [1.0, 0.0],
-            object_id: object_id(TERRAIN_LAYER_CODE, 0),
-            reference_base: 0,
-        }];
+        let mut plants = Vec::with_capacity(scene.plant_count());
         let mut reference_centers = Vec::new();
-        let mut batches = Vec::new();
         for (layer_index, layer) in scene.layers.iter().enumerate() {
-            let mut order: Vec<u32> = (0..layer.plants.len() as u32).collect();
-            order.sort_by_key(|&i| layer.plants[i as usize].species);
-            for chunk in order.chunk_by(|&a, &b| layer.plants[a as usize].species == layer.plants[b as usize].species) {
-                let start = instances.len() as u32;
-                for &i in chunk {
-                    let plant = &layer.plants[i as usize];
-                    let [x, y, z] = plant.position;
-                    let rotation = glam::Quat::from_rotation_z(plant.rotation);
-                    let offset = glam::Vec3::new(x, y, z);
-                    instances.push(Instance {
-                        offset_scale: [x, y, z, plant.scale],
-                        rotation: [plant.rotation.cos(), plant.rotation.sin()],
-                        object_id: object_id(layer_index as u32 + 2, i),
-                        reference_base: reference_centers.len() as u32,
-                    });
-                    reference_centers.extend(
-                        clusters[plant.species].spheres.iter().map(|s| offset + rotation * (s.center * plant.scale)),
-                    );
-                }
-                batches.push(Batch {
-                    species: layer.plants[chunk[0] as usize].species,
-                    instances: start..instances.len() as u32,
-                });
+            for (i, plant) in layer.plants.iter().enumerate() {
+                let [x, y, z] = plant.position;
+                let rotation = glam::Quat::from_rotation_z(plant.rotation);
+                let offset = Vec3::new(x, y, z);
+                let (hlps, board) = &plant_boards[plant.species];
+                let instance = Instance {
+                    offset_scale: [x, y, z, plant.scale],
+                    rotation: [plant.rotation.cos(), plant.rotation.sin()],
+                    object_id: object_id(layer_index as u32 + 2, i as u32),
+                    reference_base: reference_centers.len() as u32,
+                    mask: [0.0, 1.0],
+                };
+                let world = |c: Vec3| offset + rotation * (c * plant.scale);
+                reference_centers.extend(hlps.spheres.iter().map(|s| world(s.center)));
+                reference_centers.push(world(board.center));
+                plants.push(Plant { species: plant.species, instance });
             }
         }
-        let instance_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("instances"),
-            contents: bytemuck::cast_slice(&instances),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let triangles = scene.terrain.mesh.triangle_count() as u64
-            + batches
-                .iter()
-                .map(|b| {
-                    u64::from(b.instances.end - b.instances.start)
-                        * scene.species[b.species].model.triangle_count() as u64
-                })
-                .sum::<u64>();
+        plants.sort_by_key(|p| p.species);
+        let source_triangles = scene.terrain.mesh.triangle_count() as u64
+            + plants.iter().map(|p| species[p.species].triangles[LodLevel::Full.index()]).sum::<u64>();
         let zero_references = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("zero references"),
             contents: &vec![0u8; 8 * reference_centers.len().max(1)],
             usage: wgpu::BufferUsages::STORAGE,
         });
-        SceneGpu {
-            terrain,
-            species,
-            instances: instance_buffer,
-            batches,
-            triangles,
-            reference_centers,
-            zero_references,
+        info!(
+            species = species.len(),
+            plants = plants.len(),
+            hlps = hlp_counts.iter().sum::<usize>(),
+            source_triangles,
+            "scene uploaded"
+        );
+        // Meshes and textures, the zero references, and at most every plant twice per frame.
+        let gpu_bytes = up.bytes
+            + 8 * reference_centers.len() as u64
+            + 2 * (plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64;
+        Ok(SceneGpu { terrain, species, plants, source_triangles, reference_centers, zero_references, gpu_bytes })
+    }
+
+    /// Uploads one species at every level of detail; bakes (or loads) its billboard atlas.
+    #[allow(clippy::too_many_arguments)]
+    fn upload_species(
+        gpu: &Gpu,
+        up: &mut Uploader<'_>,
+        baker: &Baker,
+        model: &PlantModel,
+        hlp_radius: f32,
+        spheres: &[Sphere],
+        plant_board: Billboard,
+        disk: Option<&DiskCache>,
+    ) -> Result<SpeciesGpu, RenderError> {
+        let hlps = hlp::cluster_cached(model, hlp_radius, disk);
+        // Level 0: the model, foliage split and sorted by HLP so each HLP can be baked alone.
+        let mut full = Vec::new();
+        let mut hlp_ranges = Vec::new();
+        for (part, triangle_hlp) in model.parts.iter().zip(&hlps.triangle_hlp) {
+            match part.kind {
+                PartKind::Foliage => {
+                    let mut split = hlp::split_by_hlp(&part.mesh, triangle_hlp);
+                    let ranges = hlp::sort_by_hlp(&mut split, spheres.len());
+                    full.push(up.mesh(&split.mesh, Some((&split.hlp, spheres)), &part.material, Surface::Foliage));
+                    hlp_ranges.push(Some(ranges));
+                }
+                PartKind::Wood => {
+                    full.push(up.mesh(&part.mesh, None, &part.material, Surface::Wood));
+                    hlp_ranges.push(None);
+                }
+            }
         }
+        // Atlas tiles: three views per HLP, then three for the whole plant.
+        let boards: Vec<Billboard> = spheres.iter().map(Billboard::of_sphere).collect();
+        let atlas = Atlas::new(3 * (boards.len() + 1), BILLBOARD_TILE);
+        let bake = || {
+            let mut tiles = Vec::with_capacity(3 * (boards.len() + 1));
+            for (h, board) in boards.iter().enumerate() {
+                for view in 0..3 {
+                    let draws = full
+                        .iter()
+                        .zip(&hlp_ranges)
+                        .filter_map(|(mesh, ranges)| {
+                            let range = ranges.as_ref()?.get(h)?.clone();
+                            (!range.is_empty()).then_some(BakeDraw {
+                                vertices: &mesh.vertices,
+                                indices: &mesh.indices,
+                                range,
+                                material: &mesh.material,
+                            })
+                        })
+                        .collect();
+                    tiles.push(BakeTile { matrix: board.bake_matrix(view), draws });
+                }
+            }
+            for view in 0..3 {
+                let draws = full
+                    .iter()
+                    .map(|mesh| BakeDraw {
+                        vertices: &mesh.vertices,
+                        indices: &mesh.indices,
+                        range: 0..mesh.index_count,
+                        material: &mesh.material,
+                    })
+                    .collect();
+                tiles.push(BakeTile { matrix: plant_board.bake_matrix(view), draws });
+            }
+            baker.bake(gpu, &atlas, &tiles)
+        };
+        let image = match disk {
+            Some(disk) => {
+                let mut failure = None;
+                let image = disk.get_or_compute(
+                    "billboards",
+                    &bake_key(model, hlp_radius),
+                    |bytes| decode_png(bytes, atlas.size()),
+                    encode_png,
+                    || {
+                        bake().unwrap_or_else(|e| {
+                            failure = Some(e);
+                            image::RgbaImage::new(1, 1)
+                        })
+                    },
+                );
+                if let Some(error) = failure {
+                    return Err(error);
+                }
+                image
+            }
+            None => bake()?,
+        };
+        let billboard_material = Material {
+            name: format!("{} billboards", model.name),
+            base_color: [1.0; 4],
+            texture: Some(Arc::new(image)),
+            alpha_cutoff: Some(BILLBOARD_ALPHA_CUTOFF),
+            double_sided: true,
+        };
+        // Level 1: the HLP billboard cloud and the trunk prism.
+        let (hlp_mesh, owners) = lod::billboard_mesh(&boards, &atlas, 0);
+        let mut hlp_level = vec![up.mesh(&hlp_mesh, Some((&owners, spheres)), &billboard_material, Surface::Billboard)];
+        let mut hlp_triangles = hlp_mesh.triangle_count() as u64;
+        if let Some((trunk, part)) = lod::trunk_cylinder(model, TRUNK_SIDES) {
+            hlp_triangles += trunk.triangle_count() as u64;
+            hlp_level.push(up.mesh(&trunk, None, &model.parts[part].material, Surface::Wood));
+        }
+        // Level 2: one billboard for the plant, indexing the reference entry after the HLPs.
+        let (plant_mesh, plant_owner) = lod::billboard_mesh(&[plant_board], &atlas, 3 * boards.len());
+        let plant_sphere = [Sphere { center: plant_board.center, radius: plant_board.radius }];
+        let plant_index = vec![spheres.len() as u32; plant_owner.len()];
+        let mut indexed_spheres = spheres.to_vec();
+        indexed_spheres.extend(plant_sphere);
+        let plant_level =
+            vec![up.mesh(&plant_mesh, Some((&plant_index, &indexed_spheres)), &billboard_material, Surface::Billboard)];
+        let (lo, hi) = model.bounds();
+        let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
+        Ok(SpeciesGpu {
+            levels: [full, hlp_level, plant_level],
+            triangles: [model.triangle_count() as u64, hlp_triangles, plant_mesh.triangle_count() as u64],
+            bounds: Sphere { center: (lo + hi) * 0.5, radius: (hi - lo).length() * 0.5 },
+            height: hi.z - lo.z,
+        })
     }
 
     /// World-space centres of every (instance, HLP) pair, in the order of the reference buffer.
-    pub fn reference_centers(&self) -> &[glam::Vec3] {
+    pub fn reference_centers(&self) -> &[Vec3] {
         &self.reference_centers
     }
 
@@ -268,14 +488,94 @@ impl SceneGpu {
         &self.zero_references
     }
 
-    /// Triangles submitted per frame.
-    pub fn triangles(&self) -> u64 {
-        self.triangles
+    /// Estimated GPU memory of the scene in bytes (see [`super::Renderer::gpu_bytes`]).
+    pub fn gpu_bytes(&self) -> u64 {
+        self.gpu_bytes
     }
 
-    /// Records the draws of the terrain and every instance batch.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
-        pass.set_vertex_buffer(1, self.instances.slice(..));
+    /// Triangles of the whole scene at full detail.
+    pub fn source_triangles(&self) -> u64 {
+        self.source_triangles
+    }
+
+    /// Culls the plants against the view frustum of `camera` (for a `width` × `height` image),
+    /// picks each visible plant's level(s) of detail and uploads the instance list.
+    pub fn cull(
+        &self,
+        device: &wgpu::Device,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        lod: &LodSettings,
+    ) -> VisibleSet {
+        let aspect = width as f32 / height as f32;
+        let planes = frustum_planes(camera.projection(aspect) * camera.view());
+        let eye = Vec3::from(camera.position);
+        let forward = camera.forward();
+        // Pixels per metre at unit depth (perspective) or everywhere (plan view).
+        let plan = camera.plan_metres_per_pixel(width);
+        let px_per_metre = height as f32 / (2.0 * (camera.fov.to_radians() * 0.5).tan());
+        let mut runs: Vec<Vec<Instance>> = vec![Vec::new(); self.species.len() * 3];
+        let mut stats = DrawStats { plants: self.plants.len() as u64, ..DrawStats::default() };
+        for plant in &self.plants {
+            let s = &self.species[plant.species];
+            let i = &plant.instance;
+            let [x, y, z, scale] = i.offset_scale;
+            let [c, sn] = i.rotation;
+            let local = s.bounds.center * scale;
+            let center = Vec3::new(x + c * local.x - sn * local.y, y + sn * local.x + c * local.y, z + local.z);
+            let radius = s.bounds.radius * scale;
+            if planes.iter().any(|p| p.truncate().dot(center) + p.w < -radius) {
+                continue;
+            }
+            let px = match plan {
+                // Seen from above, the crown's extent matters, not the height.
+                Some(m) => 2.0 * radius / m,
+                None => {
+                    let depth = (center - eye).dot(forward).max(radius * 0.5).max(1e-3);
+                    s.height * scale * px_per_metre / depth
+                }
+            };
+            let draws = lod.select(px);
+            if draws[0].is_some() {
+                stats.plants_drawn += 1;
+            }
+            for draw in draws.into_iter().flatten() {
+                stats.per_level[draw.level.index()] += 1;
+                stats.triangles += s.triangles[draw.level.index()];
+                runs[plant.species * 3 + draw.level.index()].push(Instance { mask: draw.mask, ..*i });
+            }
+        }
+        let terrain = Instance {
+            offset_scale: [0.0, 0.0, 0.0, 1.0],
+            rotation: [1.0, 0.0],
+            object_id: object_id(TERRAIN_LAYER_CODE, 0),
+            reference_base: 0,
+            mask: [0.0, 1.0],
+        };
+        stats.triangles += u64::from(self.terrain.index_count / 3);
+        stats.source_triangles = self.source_triangles;
+        let mut instances = vec![terrain];
+        let mut batches = Vec::new();
+        for (run_index, run) in runs.into_iter().enumerate() {
+            if run.is_empty() {
+                continue;
+            }
+            let start = instances.len() as u32;
+            instances.extend(run);
+            batches.push((run_index / 3, LodLevel::ALL[run_index % 3], start..instances.len() as u32));
+        }
+        let instances = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("visible instances"),
+            contents: bytemuck::cast_slice(&instances),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        VisibleSet { instances, batches, stats }
+    }
+
+    /// Records the draws of the terrain and every visible instance run.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, visible: &VisibleSet) {
+        pass.set_vertex_buffer(1, visible.instances.slice(..));
         let mut draw = |mesh: &GpuMesh, instances: Range<u32>| {
             pass.set_bind_group(1, &mesh.material, &[]);
             pass.set_vertex_buffer(0, mesh.vertices.slice(..));
@@ -283,10 +583,43 @@ impl SceneGpu {
             pass.draw_indexed(0..mesh.index_count, 0, instances);
         };
         draw(&self.terrain, 0..1);
-        for batch in &self.batches {
-            for mesh in &self.species[batch.species] {
-                draw(mesh, batch.instances.clone());
+        for (species, level, instances) in &visible.batches {
+            for mesh in &self.species[*species].levels[level.index()] {
+                draw(mesh, instances.clone());
             }
         }
+    }
+}
+
+/// The side planes of a view frustum (left, right, bottom, top, near) from a world → clip
+/// matrix with wgpu's clip volume (−w ≤ x, y ≤ w, 0 ≤ z ≤ w), each as (n, d) with the inside
+/// where n·p + d ≥ 0 and |n| = 1. The far plane is omitted (the projection has none).
+pub fn frustum_planes(view_proj: glam::Mat4) -> [glam::Vec4; 5] {
+    let m = view_proj.transpose();
+    let (r0, r1, r2, r3) = (m.x_axis, m.y_axis, m.z_axis, m.w_axis);
+    [r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 - r2].map(|p| p / p.truncate().length().max(1e-12))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frustum_planes_contain_what_the_camera_sees() {
+        let camera = Camera {
+            position: [0.0, 0.0, 2.0],
+            yaw: 0.0,
+            pitch: 0.0,
+            fov: 60.0,
+            roll: 0.0,
+            projection: Default::default(),
+        };
+        let planes = frustum_planes(camera.projection(1.0) * camera.view());
+        let inside = |p: Vec3, r: f32| planes.iter().all(|q| q.truncate().dot(p) + q.w >= -r);
+        assert!(inside(Vec3::new(0.0, 50.0, 2.0), 0.0), "straight ahead");
+        assert!(inside(Vec3::new(0.0, 1.0e5, 2.0), 0.0), "far ahead: no far plane");
+        assert!(!inside(Vec3::new(0.0, -10.0, 2.0), 1.0), "behind");
+        assert!(!inside(Vec3::new(40.0, 50.0, 2.0), 1.0), "right of the 60° cone");
+        assert!(inside(Vec3::new(40.0, 50.0, 2.0), 20.0), "a large sphere reaching in");
     }
 }

@@ -1,10 +1,14 @@
-//! The style parameters of a rendering: one struct, serialisable, with defaults and ranges.
+//! The style parameters of a rendering: one struct, serialisable, with defaults, ranges and a
+//! schema generated from the same field list; the photorealism axis (thesis 8.2.7); per-layer
+//! styles of one frame (thesis 8.2.8); and the uniform blocks the passes read.
 //!
-//! Every pass reads its parameters from here; the field-by-field reference is in the README
-//! ("Style"). Later issues add abstraction, colour and the photorealism axis.
+//! The field-by-field reference is in the README ("Style"); [`Style::schema`] gives the same
+//! as data (name, kind, default, range, description) for the CLI and the API.
 
 use super::RenderError;
 use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value};
+use std::collections::BTreeMap;
 
 /// How hatch texture coordinates are computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -18,142 +22,404 @@ pub enum HatchSpace {
     Image,
 }
 
-/// Pen-and-ink style parameters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct Style {
+/// A type a style field can have: its kind in the schema and the numbers its range applies to.
+trait FieldValue {
+    /// `number`, `integer`, `boolean`, `string` or `color` (three numbers).
+    const KIND: &'static str;
+    /// The numbers checked against the field's range (every component of a colour).
+    fn numbers(&self) -> Vec<f32>;
+}
+
+impl FieldValue for f32 {
+    const KIND: &'static str = "number";
+    fn numbers(&self) -> Vec<f32> {
+        vec![*self]
+    }
+}
+
+impl FieldValue for u32 {
+    const KIND: &'static str = "integer";
+    fn numbers(&self) -> Vec<f32> {
+        vec![*self as f32]
+    }
+}
+
+impl FieldValue for usize {
+    const KIND: &'static str = "integer";
+    fn numbers(&self) -> Vec<f32> {
+        vec![*self as f32]
+    }
+}
+
+impl FieldValue for bool {
+    const KIND: &'static str = "boolean";
+    fn numbers(&self) -> Vec<f32> {
+        Vec::new()
+    }
+}
+
+impl FieldValue for HatchSpace {
+    const KIND: &'static str = "string";
+    fn numbers(&self) -> Vec<f32> {
+        Vec::new()
+    }
+}
+
+impl FieldValue for [f32; 3] {
+    const KIND: &'static str = "color";
+    fn numbers(&self) -> Vec<f32> {
+        self.to_vec()
+    }
+}
+
+/// One style field described as data: what `landsketch presets --schema`, `GET /api/scene`
+/// and the README table show.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FieldSchema {
+    /// The JSON field name.
+    pub name: &'static str,
+    /// `number`, `integer`, `boolean`, `string` (an enumeration, values in the description) or
+    /// `color` (three sRGB numbers).
+    pub kind: &'static str,
+    /// The default value.
+    pub default: Value,
+    /// Smallest allowed value (of each component for colours); `None` when unbounded.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min: Option<f32>,
+    /// Largest allowed value; `None` when unbounded.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max: Option<f32>,
+    /// What the field does.
+    pub doc: String,
+}
+
+/// `value` as JSON through its text form, so `f32` values keep their short decimal form
+/// (0.2, not 0.20000000298023224).
+fn json_value<T: Serialize>(value: &T) -> Value {
+    serde_json::to_string(value).and_then(|text| serde_json::from_str(&text)).unwrap_or(Value::Null)
+}
+
+/// Joins the lines of a doc comment into one paragraph.
+fn paragraph(doc: &str) -> String {
+    doc.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Defines [`Style`], its `Default`, its range validation and its schema from one field list:
+/// `/// doc` `name: type = default, lo..=hi;` (the range is optional).
+macro_rules! style_fields {
+    ($($(#[doc = $doc:literal])+ $name:ident : $ty:ty = $default:expr $(, $lo:literal ..= $hi:literal)?;)+) => {
+        /// Style parameters, from pen-and-ink sketch to photorealism. Every field has a default,
+        /// so any subset can be given as JSON; unknown fields are errors.
+        #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+        #[serde(default, deny_unknown_fields)]
+        pub struct Style {
+            $($(#[doc = $doc])+ pub $name: $ty,)+
+        }
+
+        impl Default for Style {
+            fn default() -> Self {
+                Style { $($name: $default,)+ }
+            }
+        }
+
+        impl Style {
+            /// Checks every parameter against its range (the error names the field and the
+            /// range); art map indices are checked by the renderer, which knows its maps.
+            pub fn validate(&self) -> Result<(), RenderError> {
+                $($(
+                    for value in self.$name.numbers() {
+                        if !(value.is_finite() && (($lo as f32)..=($hi as f32)).contains(&value)) {
+                            return Err(RenderError::Style {
+                                field: stringify!($name),
+                                value,
+                                range: concat!(stringify!($lo), "..=", stringify!($hi)),
+                            });
+                        }
+                    }
+                )?)+
+                Ok(())
+            }
+
+            /// Every field with its kind, default, range and description, in declaration order.
+            pub fn schema() -> Vec<FieldSchema> {
+                let defaults = Style::default();
+                vec![$(FieldSchema {
+                    name: stringify!($name),
+                    kind: <$ty as FieldValue>::KIND,
+                    default: json_value(&defaults.$name),
+                    min: None $(.or(Some($lo as f32)))?,
+                    max: None $(.or(Some($hi as f32)))?,
+                    doc: paragraph(concat!($($doc, " "),+)),
+                },)+]
+            }
+        }
+    };
+}
+
+style_fields! {
+    /// Master axis between sketch (0) and photorealism (1), thesis 8.2.7 (where the parameter
+    /// runs the other way, 1 = sketch): moves every other parameter continuously towards
+    /// photorealistic rendering (see `Style::resolved`).
+    photorealism: f32 = 0.0, 0..=1;
     /// Depth-difference scale `c` of thesis eq. 5.1 (applied to relative depth differences).
-    pub contour_scale: f32,
+    contour_scale: f32 = 4.0, 0..=1000;
     /// Threshold `t` of thesis eq. 5.1: relative depth steps below `t / c` draw no contour.
-    pub contour_threshold: f32,
+    contour_threshold: f32 = 0.2, 0..=10;
     /// Selective-dilation depth pre-filter before contour detection (thesis eq. 5.4).
-    pub contour_prefilter: bool,
+    contour_prefilter: bool = true;
     /// Remove isolated contour pixels (thesis eq. 5.2).
-    pub isolated_pixel_removal: bool,
-    /// Threshold `t'` of thesis eq. 5.2 separating contour pixels from background.
-    pub isolated_pixel_threshold: f32,
+    isolated_pixel_removal: bool = true;
+    /// Threshold `t'` of thesis eq. 5.2 separating contour pixels from background (also what
+    /// counts as a contour pixel for silhouettes).
+    isolated_pixel_threshold: f32 = 0.5, 0..=1;
     /// How dark plain contours are drawn, 0 (invisible) to 1 (full ink).
-    pub contour_strength: f32,
-    /// Silhouette art map (SAM) index (see `Renderer::silhouette_maps`).
-    pub silhouette_map: usize,
+    contour_strength: f32 = 1.0, 0..=1;
+    /// Silhouette art map (SAM) index: 0 plain lines, 1 scallops, 2 spikes, 3 sketchy double
+    /// lines.
+    silhouette_map: usize = 1, 0..=255;
     /// Width in pixels of the silhouette support searched along E (thesis 5.2); 0 disables
     /// stylized silhouettes.
-    pub silhouette_support: f32,
+    silhouette_support: f32 = 8.0, 0..=16;
     /// Stretch `c` of the SAM along the contour (thesis eq. 5.5).
-    pub silhouette_stretch: f32,
+    silhouette_stretch: f32 = 1.0, 0.01..=100;
     /// How dark stylized silhouettes are drawn, 0 to 1.
-    pub silhouette_strength: f32,
-    /// Tonal art map (TAM) index (see `Renderer::tonal_art_maps`).
-    pub hatch_map: usize,
-    /// Hybrid (thesis 6.1) or plain image-space hatch coordinates for plants.
-    pub hatch_space: HatchSpace,
+    silhouette_strength: f32 = 1.0, 0..=1;
+    /// Tonal art map (TAM) index: 0 lines, 1 cross-hatching, 2 scribbles, 3 stipples.
+    hatch_map: usize = 0, 0..=255;
+    /// `hybrid` (thesis 6.1) or `image`: how plants' hatch coordinates are computed.
+    hatch_space: HatchSpace = HatchSpace::Hybrid;
     /// TAM tiles per π radians of an HLP sphere (`m = n` of thesis eq. 6.1–6.3).
-    pub hatch_tiles: f32,
+    hatch_tiles: f32 = 2.0, 0.05..=64;
     /// `c` of the surface function f(A) (thesis eq. 6.6); 0 keeps hatching flat.
-    pub hatch_surface: f32,
+    hatch_surface: f32 = 0.0, 0..=10;
     /// Size of one TAM tile in pixels where hatching is in image space (the terrain, and
-    /// everything with `hatch_space: image`); the TAM's size gives its finest level.
-    pub image_hatch_scale: f32,
+    /// everything with `hatch_space: image`).
+    image_hatch_scale: f32 = 256.0, 4..=4096;
     /// How dark hatching is drawn, 0 (none) to 1.
-    pub hatch_strength: f32,
-    /// Blend of the original normals towards the HLP normals for lighting (thesis 6.1.3).
-    pub normal_blend: f32,
+    hatch_strength: f32 = 1.0, 0..=1;
+    /// Lifts the hatch tone towards white, 0 (as lit) to 1 (brightest: no strokes), thesis
+    /// 8.2.5/8.2.7.
+    hatch_brightness: f32 = 0.0, 0..=1;
+    /// HLP abstraction `1 − f` of thesis eq. 4.8: leaves move from their positions (0) to the
+    /// surface of their HLP sphere (1).
+    hlp_abstraction: f32 = 0.0, 0..=1;
+    /// Blend of the original normals towards the HLP normals for lighting and colour (thesis
+    /// 6.1.3, 6.2).
+    normal_blend: f32 = 0.5, 0..=1;
     /// Ambient share of the light, 0 (pure Lambert) to 1 (flat).
-    pub ambient: f32,
-    /// How much the surface's own albedo darkens the tone, 0 (lighting only) to 1.
-    pub albedo_weight: f32,
+    ambient: f32 = 0.5, 0..=1;
+    /// How much the surface's own albedo darkens the hatch tone, 0 (lighting only) to 1.
+    albedo_weight: f32 = 0.6, 0..=1;
     /// Contrast `scale` of thesis eq. 6.7 about `tone_reference`; 1 leaves the tone unchanged.
-    pub tone_contrast: f32,
+    tone_contrast: f32 = 1.6, 0..=10;
     /// `L_ref` of thesis eq. 6.7.
-    pub tone_reference: f32,
-    /// Banding of the tone into this many levels (thesis 6.1.3); 0 keeps it continuous.
-    pub tone_levels: u32,
+    tone_reference: f32 = 0.45, 0..=1;
+    /// Banding of the hatch tone into this many levels (thesis 6.1.3); 0 keeps it continuous.
+    tone_levels: u32 = 0, 0..=16;
     /// Radius in pixels of the Gaussian blur of the tone image (thesis Fig. 6.9d); 0 = none.
-    pub tone_blur: u32,
+    tone_blur: u32 = 2, 0..=4;
+    /// Amount of colour painted under the ink (thesis 6.2, 8.2.6): 0 paper, 1 the shaded
+    /// surface colour.
+    color: f32 = 0.0, 0..=1;
+    /// Saturation of the surface colour: 0 grey, 1 as textured, 2 doubled.
+    color_saturation: f32 = 1.0, 0..=2;
+    /// Colour abstraction (thesis 6.2): 0 the texture colour, 1 the material's average colour.
+    color_abstraction: f32 = 0.0, 0..=1;
+    /// Blend of Lambert shading towards Gooch cool-to-warm shading, 0 to 1.
+    gooch: f32 = 0.0, 0..=1;
+    /// Blend of smooth shading towards toon shading with a 1D ramp of `toon_levels` bands
+    /// (Campos et al.), 0 to 1.
+    toon: f32 = 0.0, 0..=1;
+    /// Bands of the toon ramp.
+    toon_levels: u32 = 3, 2..=16;
+    /// Background: 0 paper, 1 the sky gradient from `sky_horizon` to `sky_zenith`.
+    sky: f32 = 0.0, 0..=1;
+    /// Sky colour overhead (sRGB, 0..1).
+    sky_zenith: [f32; 3] = [0.33, 0.52, 0.82], 0..=1;
+    /// Sky colour at the horizon (sRGB, 0..1).
+    sky_horizon: [f32; 3] = [0.8, 0.87, 0.94], 0..=1;
     /// Ink colour (sRGB, 0..1).
-    pub ink: [f32; 3],
+    ink: [f32; 3] = [0.08, 0.08, 0.1], 0..=1;
     /// Paper colour (sRGB, 0..1).
-    pub paper: [f32; 3],
+    paper: [f32; 3] = [1.0, 1.0, 0.98], 0..=1;
 }
 
-impl Default for Style {
-    fn default() -> Self {
-        Style {
-            contour_scale: 4.0,
-            contour_threshold: 0.2,
-            contour_prefilter: true,
-            isolated_pixel_removal: true,
-            isolated_pixel_threshold: 0.5,
-            contour_strength: 1.0,
-            silhouette_map: 1,
-            silhouette_support: 8.0,
-            silhouette_stretch: 1.0,
-            silhouette_strength: 1.0,
-            hatch_map: 0,
-            hatch_space: HatchSpace::Hybrid,
-            hatch_tiles: 2.0,
-            hatch_surface: 0.0,
-            image_hatch_scale: 256.0,
-            hatch_strength: 1.0,
-            normal_blend: 0.5,
-            ambient: 0.5,
-            albedo_weight: 0.6,
-            tone_contrast: 1.6,
-            tone_reference: 0.45,
-            tone_levels: 0,
-            tone_blur: 2,
-            ink: [0.08, 0.08, 0.1],
-            paper: [1.0, 1.0, 0.98],
-        }
-    }
-}
-
-fn check(field: &'static str, value: f32, lo: f32, hi: f32, range: &'static str) -> Result<(), RenderError> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(RenderError::Style { field, value, range })
-    }
-}
+/// Value the contour threshold moves to at full photorealism: the top of its range, where no
+/// depth step draws a contour (thesis 8.2.7: "edge detection threshold … to 1").
+const PHOTOREAL_CONTOUR_THRESHOLD: f32 = 10.0;
 
 impl Style {
-    /// Checks every parameter against its documented range; art map indices are checked by the
-    /// renderer that knows how many maps it has.
-    pub fn validate(&self) -> Result<(), RenderError> {
-        check("contour_scale", self.contour_scale, 0.0, 1000.0, "0..=1000")?;
-        check("contour_threshold", self.contour_threshold, 0.0, 10.0, "0..=10")?;
-        check("isolated_pixel_threshold", self.isolated_pixel_threshold, 0.0, 1.0, "0..=1")?;
-        check("contour_strength", self.contour_strength, 0.0, 1.0, "0..=1")?;
-        check("silhouette_support", self.silhouette_support, 0.0, 16.0, "0..=16")?;
-        check("silhouette_stretch", self.silhouette_stretch, 0.01, 100.0, "0.01..=100")?;
-        check("silhouette_strength", self.silhouette_strength, 0.0, 1.0, "0..=1")?;
-        check("hatch_tiles", self.hatch_tiles, 0.05, 64.0, "0.05..=64")?;
-        check("hatch_surface", self.hatch_surface, 0.0, 10.0, "0..=10")?;
-        check("image_hatch_scale", self.image_hatch_scale, 4.0, 4096.0, "4..=4096")?;
-        check("hatch_strength", self.hatch_strength, 0.0, 1.0, "0..=1")?;
-        check("normal_blend", self.normal_blend, 0.0, 1.0, "0..=1")?;
-        check("ambient", self.ambient, 0.0, 1.0, "0..=1")?;
-        check("albedo_weight", self.albedo_weight, 0.0, 1.0, "0..=1")?;
-        check("tone_contrast", self.tone_contrast, 0.0, 10.0, "0..=10")?;
-        check("tone_reference", self.tone_reference, 0.0, 1.0, "0..=1")?;
-        check("tone_levels", self.tone_levels as f32, 0.0, 16.0, "0..=16")?;
-        check("tone_blur", self.tone_blur as f32, 0.0, 4.0, "0..=4")?;
-        for c in self.ink.iter().chain(&self.paper) {
-            check("ink/paper", *c, 0.0, 1.0, "0..=1")?;
+    /// The parameters actually rendered: every field moved from its value towards its
+    /// photorealistic value by `photorealism` p (thesis 8.2.7), `v + (target − v)·p`:
+    /// HLP abstraction and HLP normals → 0 (original geometry and lighting), contour threshold
+    /// → 10 (no contours), contour and silhouette strength and silhouette support → 0 (no
+    /// lines), hatch brightness → 1 (no strokes), colour → 1, saturation → 1, colour
+    /// abstraction → 0 (full, realistic colour), Gooch and toon → 0 (Lambert shading), sky → 1.
+    pub fn resolved(&self) -> Style {
+        let p = self.photorealism;
+        let to = |value: f32, target: f32| value + (target - value) * p;
+        Style {
+            hlp_abstraction: to(self.hlp_abstraction, 0.0),
+            normal_blend: to(self.normal_blend, 0.0),
+            contour_threshold: to(self.contour_threshold, PHOTOREAL_CONTOUR_THRESHOLD),
+            contour_strength: to(self.contour_strength, 0.0),
+            silhouette_strength: to(self.silhouette_strength, 0.0),
+            silhouette_support: to(self.silhouette_support, 0.0),
+            hatch_brightness: to(self.hatch_brightness, 1.0),
+            color: to(self.color, 1.0),
+            color_saturation: to(self.color_saturation, 1.0),
+            color_abstraction: to(self.color_abstraction, 0.0),
+            gooch: to(self.gooch, 0.0),
+            toon: to(self.toon, 0.0),
+            sky: to(self.sky, 1.0),
+            ..self.clone()
         }
-        Ok(())
     }
+
+    /// This style as a JSON object (through JSON text, so numbers keep their short form).
+    pub fn to_json(&self) -> Map<String, Value> {
+        match json_value(self) {
+            Value::Object(map) => map,
+            _ => Map::new(),
+        }
+    }
+
+    /// `self` with the fields of `overrides` (a partial style) replaced, then validated.
+    /// Wrong types and unknown fields are [`RenderError::StyleField`] naming the field;
+    /// out-of-range values [`RenderError::Style`].
+    pub fn merged(&self, overrides: &Map<String, Value>) -> Result<Style, RenderError> {
+        let mut map = self.to_json();
+        map.extend(overrides.iter().map(|(k, v)| (k.clone(), v.clone())));
+        let style: Style = serde_path_to_error::deserialize(Value::Object(map)).map_err(|e| {
+            let path = e.path().to_string();
+            RenderError::StyleField { field: (path != ".").then_some(path), message: e.inner().to_string() }
+        })?;
+        style.validate()?;
+        Ok(style)
+    }
+
+    /// A style from an optional preset (see [`super::presets`]) with `overrides` merged over
+    /// it; without a preset the overrides apply to the defaults.
+    pub fn from_preset(preset: Option<&str>, overrides: &Map<String, Value>) -> Result<Style, RenderError> {
+        let base = match preset {
+            Some(name) => super::presets::preset(name)?,
+            None => Style::default(),
+        };
+        base.merged(overrides)
+    }
+
+    /// The style of one layer from its partial style: the fields merged over the frame's style
+    /// `self`, or over a preset when the partial style names one (`{"preset": "photorealism"}`).
+    pub fn layer(&self, partial: &Map<String, Value>) -> Result<Style, RenderError> {
+        match partial.get("preset") {
+            None => self.merged(partial),
+            Some(Value::String(name)) => {
+                let mut fields = partial.clone();
+                fields.remove("preset");
+                Style::from_preset(Some(name), &fields)
+            }
+            Some(other) => Err(RenderError::StyleField {
+                field: Some("preset".into()),
+                message: format!("expected a preset name, got {other}"),
+            }),
+        }
+    }
+}
+
+/// Name of the terrain in per-layer styles (vegetation layers use their scene names).
+pub const TERRAIN_LAYER: &str = "terrain";
+
+/// Style slots of one frame, indexed by the layer code of the ID buffer: 0 the background (the
+/// base style), 1 the terrain, `i + 2` vegetation layer `i`. Layer codes from here on use the
+/// base style.
+pub const STYLE_SLOTS: usize = 16;
+
+/// The styles of one frame (thesis 8.2.8): a base style and, by layer name (`terrain` or a
+/// vegetation layer's name), styles of their own for some layers.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameStyle {
+    /// The style of the background and of every layer without its own.
+    pub base: Style,
+    /// Styles of single layers.
+    pub layers: BTreeMap<String, Style>,
+}
+
+impl From<Style> for FrameStyle {
+    fn from(base: Style) -> FrameStyle {
+        FrameStyle { base, layers: BTreeMap::new() }
+    }
+}
+
+impl From<&Style> for FrameStyle {
+    fn from(base: &Style) -> FrameStyle {
+        FrameStyle::from(base.clone())
+    }
+}
+
+impl From<&FrameStyle> for FrameStyle {
+    fn from(styles: &FrameStyle) -> FrameStyle {
+        styles.clone()
+    }
+}
+
+impl FrameStyle {
+    /// Every style of the frame, the base first.
+    pub fn styles(&self) -> impl Iterator<Item = &Style> {
+        std::iter::once(&self.base).chain(self.layers.values())
+    }
+
+    /// The resolved style (photorealism applied) of every slot, given the scene's vegetation
+    /// layer names. A layer name the scene does not have, or a layer beyond the slots, is an
+    /// error.
+    pub fn slots(&self, vegetation_layers: &[String]) -> Result<Vec<Style>, RenderError> {
+        let mut slots = vec![self.base.resolved(); STYLE_SLOTS];
+        for (name, style) in &self.layers {
+            let slot = if name == TERRAIN_LAYER {
+                1
+            } else {
+                let index = vegetation_layers.iter().position(|l| l == name).ok_or_else(|| {
+                    let known: Vec<&str> =
+                        std::iter::once(TERRAIN_LAYER).chain(vegetation_layers.iter().map(String::as_str)).collect();
+                    RenderError::UnknownLayer { name: name.clone(), known: known.join(", ") }
+                })?;
+                index + 2
+            };
+            if slot >= STYLE_SLOTS {
+                return Err(RenderError::LayerSlots { name: name.clone(), max: STYLE_SLOTS - 2 });
+            }
+            slots[slot] = style.resolved();
+        }
+        Ok(slots)
+    }
+}
+
+/// Groups the slots by silhouette art map: the distinct `silhouette_map`s in slot order, and
+/// each slot's group. The compose pass runs once per group (a pass binds one SAM; the TAMs are
+/// one array picked per pixel) and draws only the pixels of its group's slots.
+pub fn art_groups(slots: &[Style]) -> (Vec<usize>, Vec<u32>) {
+    let mut groups: Vec<usize> = Vec::new();
+    let slot_groups = slots
+        .iter()
+        .map(|s| {
+            let key = s.silhouette_map;
+            let index = groups.iter().position(|g| *g == key).unwrap_or_else(|| {
+                groups.push(key);
+                groups.len() - 1
+            });
+            index as u32
+        })
+        .collect();
+    (groups, slot_groups)
 }
 
 /// Thesis eq. 6.7 followed by banding: `L' = (L − L_ref)·scale + L_ref`, clamped to 0..1, then
-/// rounded to `levels` steps when `levels > 0`. The compose shader implements the same.
+/// rounded to `levels` steps when `levels > 0`. The contour shader implements the same.
 pub fn contrast_tone(light: f32, reference: f32, scale: f32, levels: u32) -> f32 {
     let t = ((light - reference) * scale + reference).clamp(0.0, 1.0);
     if levels == 0 { t } else { (t * levels as f32).round() / levels as f32 }
 }
 
-/// The uniform block of the post passes (`shaders/post_common.wgsl`), built from a [`Style`]
-/// and the sun direction.
+/// The post-pass parameters of one style slot (`Post` in `shaders/post_common.wgsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PostParams {
@@ -163,15 +429,27 @@ pub struct PostParams {
     tone2: [f32; 4],
     silhouette: [f32; 4],
     hatch: [f32; 4],
+    color: [f32; 4],
+    color2: [f32; 4],
     ink: [f32; 4],
     paper: [f32; 4],
+    sky_zenith: [f32; 4],
+    sky_horizon: [f32; 4],
 }
 
 impl PostParams {
-    /// Packs `style` for the GPU; `sun` is the unit vector towards the sun in world space,
-    /// `roll` the camera roll in radians (the orientation vector V_O of thesis 5.2 follows it),
-    /// `tam_levels` and `tam_size` describe the bound tonal art map.
-    pub fn new(style: &Style, sun: glam::Vec3, roll: f32, tam_levels: u32, tam_size: u32) -> PostParams {
+    /// Packs a resolved `style` for the GPU; `sun` is the unit vector towards the sun in world
+    /// space, `roll` the camera roll in radians (the orientation vector V_O of thesis 5.2
+    /// follows it), `tam_levels` and `tam_size` describe the style's tonal art map and
+    /// `art_group` is its compose-pass group ([`art_groups`]).
+    pub fn new(
+        style: &Style,
+        sun: glam::Vec3,
+        roll: f32,
+        tam_levels: u32,
+        tam_size: u32,
+        art_group: u32,
+    ) -> PostParams {
         let rgb = |c: [f32; 3]| [c[0], c[1], c[2], 1.0];
         let flag = |b: bool| f32::from(u8::from(b));
         PostParams {
@@ -184,10 +462,55 @@ impl PostParams {
             light: [sun.x, sun.y, sun.z, style.ambient],
             tone: [style.albedo_weight, style.tone_contrast, style.tone_reference, style.contour_strength],
             tone2: [style.tone_levels as f32, style.tone_blur as f32, tam_levels as f32, tam_size as f32],
-            silhouette: [style.silhouette_support, style.silhouette_stretch, style.silhouette_strength, 0.0],
-            hatch: [style.hatch_strength, roll.cos(), roll.sin(), 0.0],
+            silhouette: [
+                style.silhouette_support,
+                style.silhouette_stretch,
+                style.silhouette_strength,
+                art_group as f32,
+            ],
+            hatch: [style.hatch_strength, roll.cos(), roll.sin(), style.hatch_brightness],
+            color: [style.color, style.color_saturation, style.gooch, style.toon],
+            color2: [style.toon_levels as f32, style.sky, style.hatch_map as f32, 0.0],
             ink: rgb(style.ink),
             paper: rgb(style.paper),
+            sky_zenith: rgb(style.sky_zenith),
+            sky_horizon: rgb(style.sky_horizon),
+        }
+    }
+}
+
+/// The uniform block of the post passes (`Styles` in `shaders/post_common.wgsl`): the view
+/// rays for the sky, the art-map group a compose pass draws, and one [`PostParams`] per style
+/// slot.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PostUniform {
+    ray: [f32; 4],
+    frame_info: [f32; 4],
+    slots: [PostParams; STYLE_SLOTS],
+}
+
+impl PostUniform {
+    /// The block for `slots` seen by `camera` in a `width` × `height` image; `group` is the
+    /// art-map group this compose pass draws. The ray terms give the world-space z of the view
+    /// ray through each pixel (the sky gradient follows the elevation of the ray).
+    pub fn new(
+        slots: [PostParams; STYLE_SLOTS],
+        camera: &crate::scene::camera::Camera,
+        width: u32,
+        height: u32,
+        group: u32,
+    ) -> PostUniform {
+        let to_world = camera.view().inverse();
+        let right = to_world.x_axis.truncate();
+        let up = to_world.y_axis.truncate();
+        let forward = -to_world.z_axis.truncate();
+        let tan = if camera.projection.is_perspective() { (camera.fov.to_radians() * 0.5).tan() } else { 0.0 };
+        let tan_x = tan * width as f32 / height.max(1) as f32;
+        PostUniform {
+            ray: [forward.z, right.z * tan_x, up.z * tan, tan_x],
+            frame_info: [group as f32, tan, 0.0, 0.0],
+            slots,
         }
     }
 }
@@ -209,10 +532,91 @@ mod tests {
     #[test]
     fn out_of_range_and_unknown_fields_are_rejected() {
         let err = Style { silhouette_support: -1.0, ..Style::default() }.validate().unwrap_err().to_string();
-        assert!(err.contains("silhouette_support"), "{err}");
+        assert!(err.contains("silhouette_support") && err.contains("0..=16"), "{err}");
         assert!(Style { ambient: f32::NAN, ..Style::default() }.validate().is_err());
+        let err = Style { sky_zenith: [0.2, 1.5, 0.2], ..Style::default() }.validate().unwrap_err().to_string();
+        assert!(err.contains("sky_zenith") && err.contains("1.5"), "{err}");
+        assert!(Style { toon_levels: 1, ..Style::default() }.validate().is_err());
         assert!(serde_json::from_str::<Style>(r#"{"hatch_spacng": 3}"#).is_err());
         assert!(serde_json::from_str::<Style>(r#"{"hatch_space": "diagonal"}"#).is_err());
+    }
+
+    #[test]
+    fn schema_lists_every_field_with_its_default_and_range() {
+        let schema = Style::schema();
+        let json = Style::default().to_json();
+        assert_eq!(schema.len(), json.len());
+        for field in &schema {
+            assert_eq!(json[field.name], field.default, "{}", field.name);
+            assert!(!field.doc.is_empty() && !field.doc.contains("  "), "{}", field.name);
+        }
+        let photo = schema.iter().find(|f| f.name == "photorealism").unwrap();
+        assert_eq!((photo.kind, photo.min, photo.max), ("number", Some(0.0), Some(1.0)));
+        let threshold = schema.iter().find(|f| f.name == "contour_threshold").unwrap();
+        assert_eq!((threshold.default.as_f64(), threshold.max), (Some(0.2), Some(10.0)));
+        let prefilter = schema.iter().find(|f| f.name == "contour_prefilter").unwrap();
+        assert_eq!((prefilter.kind, prefilter.min), ("boolean", None));
+        assert_eq!(schema.iter().find(|f| f.name == "ink").unwrap().kind, "color");
+    }
+
+    #[test]
+    fn photorealism_moves_every_parameter_as_thesis_8_2_7_lists() {
+        let sketch = Style { hlp_abstraction: 0.6, normal_blend: 0.8, gooch: 1.0, ..Style::default() };
+        assert_eq!(sketch.resolved(), sketch);
+        let photo = Style { photorealism: 1.0, ..sketch.clone() }.resolved();
+        assert_eq!((photo.hlp_abstraction, photo.normal_blend), (0.0, 0.0));
+        assert_eq!((photo.contour_threshold, photo.contour_strength, photo.silhouette_strength), (10.0, 0.0, 0.0));
+        assert_eq!((photo.hatch_brightness, photo.color, photo.color_abstraction, photo.sky), (1.0, 1.0, 0.0, 1.0));
+        assert_eq!((photo.gooch, photo.toon, photo.color_saturation), (0.0, 0.0, 1.0));
+        // Half-way: linear interpolation, e.g. threshold 0.2 → 5.1, strength 1 → 0.5.
+        let half = Style { photorealism: 0.5, ..sketch.clone() }.resolved();
+        assert!((half.contour_threshold - 5.1).abs() < 1e-5 && (half.contour_strength - 0.5).abs() < 1e-6);
+        assert!((half.hlp_abstraction - 0.3).abs() < 1e-6 && (half.color - 0.5).abs() < 1e-6);
+        // Parameters the thesis does not list keep their values.
+        assert_eq!((photo.hatch_map, photo.ambient, photo.ink), (sketch.hatch_map, sketch.ambient, sketch.ink));
+    }
+
+    #[test]
+    fn partial_styles_merge_and_name_the_bad_field() {
+        let base = Style { color: 0.7, ..Style::default() };
+        let overrides: Map<String, Value> = serde_json::from_str(r#"{"hatch_map": 2, "ink": [0, 0, 0.5]}"#).unwrap();
+        let merged = base.merged(&overrides).unwrap();
+        assert_eq!((merged.color, merged.hatch_map, merged.ink), (0.7, 2, [0.0, 0.0, 0.5]));
+        let bad: Map<String, Value> = serde_json::from_str(r#"{"ambient": "dark"}"#).unwrap();
+        let err = base.merged(&bad).unwrap_err();
+        assert!(matches!(&err, RenderError::StyleField { field: Some(f), .. } if f == "ambient"), "{err}");
+        let range: Map<String, Value> = serde_json::from_str(r#"{"color": 3}"#).unwrap();
+        assert!(matches!(base.merged(&range), Err(RenderError::Style { field: "color", .. })));
+    }
+
+    #[test]
+    fn layer_styles_fill_their_slots() {
+        let layers = vec!["existing".to_owned(), "planned".to_owned()];
+        let photo = Style { photorealism: 1.0, ..Style::default() };
+        let mut frame = FrameStyle::from(Style::default());
+        frame.layers.insert("existing".into(), photo.clone());
+        frame.layers.insert(TERRAIN_LAYER.into(), Style { hatch_map: 1, silhouette_map: 3, ..Style::default() });
+        let slots = frame.slots(&layers).unwrap();
+        assert_eq!(slots.len(), STYLE_SLOTS);
+        assert_eq!((slots[0].hatch_map, slots[1].hatch_map), (0, 1));
+        assert_eq!(slots[2], photo.resolved());
+        assert_eq!(slots[3], Style::default());
+        let (groups, slot_groups) = art_groups(&slots);
+        assert_eq!(groups, vec![1, 3]);
+        assert_eq!(&slot_groups[..4], &[0, 1, 0, 0]);
+        // A layer's partial style merges over the frame's style, or over a preset it names.
+        let base = Style { color: 0.4, ..Style::default() };
+        let partial: Map<String, Value> = serde_json::from_str(r#"{"hatch_map": 2}"#).unwrap();
+        assert_eq!(base.layer(&partial).unwrap(), Style { hatch_map: 2, ..base.clone() });
+        let partial: Map<String, Value> =
+            serde_json::from_str(r#"{"preset": "minimalistic", "ambient": 0.2}"#).unwrap();
+        let layer = base.layer(&partial).unwrap();
+        assert_eq!((layer.color, layer.hatch_strength, layer.ambient), (0.0, 0.0, 0.2));
+        let partial: Map<String, Value> = serde_json::from_str(r#"{"preset": 3}"#).unwrap();
+        assert!(base.layer(&partial).unwrap_err().to_string().contains("preset"));
+        frame.layers.insert("meadow".into(), Style::default());
+        let err = frame.slots(&layers).unwrap_err().to_string();
+        assert!(err.contains("meadow") && err.contains("terrain, existing, planned"), "{err}");
     }
 
     #[test]

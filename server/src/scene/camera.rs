@@ -1,9 +1,35 @@
-//! Perspective cameras in scene coordinates (x east, y north, z up, metres).
+//! Cameras in scene coordinates (x east, y north, z up, metres): perspective views and
+//! orthographic top-down plan views.
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec3, Vec4};
 use serde::{Deserialize, Serialize};
 
-/// A perspective camera: eye position, compass heading, pitch and vertical field of view.
+/// How a camera projects the scene onto the image.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Projection {
+    /// Perspective with the camera's vertical field of view.
+    #[default]
+    Perspective,
+    /// Plan view: orthographic, looking straight down (−z) from the eye, `width` scene metres
+    /// across the image; the compass heading `yaw` points up in the image (0: north up).
+    Plan {
+        /// Metres of the scene across the image width.
+        width: f32,
+    },
+}
+
+impl Projection {
+    /// Whether this is the (default) perspective projection.
+    pub fn is_perspective(&self) -> bool {
+        *self == Projection::Perspective
+    }
+}
+
+/// Depth range of a plan view below its eye, in metres (the orthographic far plane).
+pub const PLAN_DEPTH_RANGE: f32 = 100_000.0;
+
+/// A camera: eye position, compass heading, pitch, vertical field of view, roll and projection.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Camera {
@@ -19,14 +45,33 @@ pub struct Camera {
     /// up vector leans right), so the picture turns counter-clockwise.
     #[serde(default)]
     pub roll: f32,
+    /// Perspective (default) or an orthographic plan view.
+    #[serde(default, skip_serializing_if = "Projection::is_perspective")]
+    pub projection: Projection,
 }
 
 /// Nearest distance the camera sees, in metres (the projection has no far plane).
 pub const NEAR_PLANE: f32 = 0.25;
 
 impl Camera {
-    /// Unit vector the camera looks along.
+    /// A plan view centred on (`x`, `y`), `width` metres across, looking down from height `z`,
+    /// north up.
+    pub fn plan(x: f32, y: f32, z: f32, width: f32) -> Camera {
+        Camera {
+            position: [x, y, z],
+            yaw: 0.0,
+            pitch: -90.0,
+            fov: 60.0,
+            roll: 0.0,
+            projection: Projection::Plan { width },
+        }
+    }
+
+    /// Unit vector the camera looks along (straight down in a plan view).
     pub fn forward(&self) -> Vec3 {
+        if !self.projection.is_perspective() {
+            return Vec3::NEG_Z;
+        }
         let (yaw, pitch) = (self.yaw.to_radians(), self.pitch.clamp(-89.9, 89.9).to_radians());
         Vec3::new(yaw.sin() * pitch.cos(), yaw.cos() * pitch.cos(), pitch.sin())
     }
@@ -35,27 +80,72 @@ impl Camera {
     pub fn view(&self) -> Mat4 {
         let eye = Vec3::from(self.position);
         let forward = self.forward();
-        let right = forward.cross(Vec3::Z).try_normalize().unwrap_or(Vec3::X);
-        let up = right.cross(forward);
+        let (right, up) = match self.projection {
+            Projection::Perspective => {
+                let right = forward.cross(Vec3::Z).try_normalize().unwrap_or(Vec3::X);
+                (right, right.cross(forward))
+            }
+            Projection::Plan { .. } => {
+                let yaw = self.yaw.to_radians();
+                let up = Vec3::new(yaw.sin(), yaw.cos(), 0.0);
+                (forward.cross(up), up)
+            }
+        };
         let roll = self.roll.to_radians();
         glam::camera::rh::view::look_at_mat4(eye, eye + forward, up * roll.cos() + right * roll.sin())
     }
 
-    /// View → clip matrix: reverse-Z infinite perspective (depth 1 at the near plane, 0 at
-    /// infinity), which keeps depth precision from a blade of grass to the horizon.
+    /// View → clip matrix. Perspective: reverse-Z infinite perspective (depth 1 at the near
+    /// plane, 0 at infinity), which keeps depth precision from a blade of grass to the horizon.
+    /// Plan view: reverse-Z orthographic, depth 1 at the eye and 0 [`PLAN_DEPTH_RANGE`] below.
     pub fn projection(&self, aspect: f32) -> Mat4 {
-        glam::camera::rh::proj::directx::perspective_infinite_reverse(
-            self.fov.clamp(1.0, 170.0).to_radians(),
-            aspect,
-            NEAR_PLANE,
-        )
+        match self.projection {
+            Projection::Perspective => glam::camera::rh::proj::directx::perspective_infinite_reverse(
+                self.fov.clamp(1.0, 170.0).to_radians(),
+                aspect,
+                NEAR_PLANE,
+            ),
+            Projection::Plan { width } => {
+                let half_width = width.max(1e-3) * 0.5;
+                Mat4::from_cols(
+                    Vec4::new(1.0 / half_width, 0.0, 0.0, 0.0),
+                    Vec4::new(0.0, aspect / half_width, 0.0, 0.0),
+                    Vec4::new(0.0, 0.0, 1.0 / PLAN_DEPTH_RANGE, 0.0),
+                    Vec4::new(0.0, 0.0, 1.0, 1.0),
+                )
+            }
+        }
     }
 
-    /// Checks that every number is finite and the field of view is within 1..=170 degrees.
+    /// Scene metres per pixel of a plan view `image_width` pixels wide; `None` in perspective.
+    pub fn plan_metres_per_pixel(&self, image_width: u32) -> Option<f32> {
+        match self.projection {
+            Projection::Perspective => None,
+            Projection::Plan { width } => Some(width / image_width.max(1) as f32),
+        }
+    }
+
+    /// The world point seen at normalized device coordinates (`ndc_x`, `ndc_y`, y up) at linear
+    /// depth `depth` (metres along the view axis): the inverse projection, then the inverse view
+    /// (thesis 9.3; `shaders/data.wgsl` does the same per pixel).
+    pub fn unproject(&self, ndc_x: f32, ndc_y: f32, depth: f32, aspect: f32) -> Vec3 {
+        let projection = self.projection(aspect);
+        let clip = projection * Vec4::new(0.0, 0.0, -depth, 1.0);
+        let view = projection.inverse() * Vec4::new(ndc_x, ndc_y, clip.z / clip.w, 1.0);
+        (self.view().inverse() * (view / view.w)).truncate()
+    }
+
+    /// Checks that every number is finite, the field of view is within 1..=170 degrees and a
+    /// plan view's width is positive.
     pub fn is_valid(&self) -> bool {
+        let plan_ok = match self.projection {
+            Projection::Perspective => true,
+            Projection::Plan { width } => width.is_finite() && width > 0.0,
+        };
         self.position.iter().chain([&self.yaw, &self.pitch, &self.roll]).all(|v| v.is_finite())
             && (1.0..=170.0).contains(&self.fov)
             && (-90.0..=90.0).contains(&self.pitch)
+            && plan_ok
     }
 }
 
@@ -65,7 +155,14 @@ mod tests {
 
     #[test]
     fn heading_follows_the_compass() {
-        let mut cam = Camera { position: [0.0; 3], yaw: 0.0, pitch: 0.0, fov: 60.0, roll: 0.0 };
+        let mut cam = Camera {
+            position: [0.0; 3],
+            yaw: 0.0,
+            pitch: 0.0,
+            fov: 60.0,
+            roll: 0.0,
+            projection: Projection::Perspective,
+        };
         assert!((cam.forward() - Vec3::Y).length() < 1e-6);
         cam.yaw = 90.0;
         assert!((cam.forward() - Vec3::X).length() < 1e-6);
@@ -75,7 +172,14 @@ mod tests {
 
     #[test]
     fn point_ahead_projects_to_the_centre_with_reverse_depth() {
-        let cam = Camera { position: [10.0, 20.0, 2.0], yaw: 90.0, pitch: 0.0, fov: 60.0, roll: 0.0 };
+        let cam = Camera {
+            position: [10.0, 20.0, 2.0],
+            yaw: 90.0,
+            pitch: 0.0,
+            fov: 60.0,
+            roll: 0.0,
+            projection: Projection::Perspective,
+        };
         let clip = cam.projection(1.5) * cam.view() * glam::Vec4::new(110.0, 20.0, 2.0, 1.0);
         let ndc = clip.truncate() / clip.w;
         assert!(ndc.x.abs() < 1e-5 && ndc.y.abs() < 1e-5);
@@ -85,8 +189,53 @@ mod tests {
     }
 
     #[test]
+    fn plan_view_looks_down_north_up_and_unprojects() {
+        let cam = Camera::plan(100.0, 50.0, 500.0, 200.0);
+        // 2:1 image: 200 m across, 100 m up; a point 50 m east and 25 m north of the centre
+        // lands half-way to the right and top edges.
+        let clip = cam.projection(2.0) * cam.view() * Vec4::new(150.0, 75.0, 20.0, 1.0);
+        assert!((clip.x / clip.w - 0.5).abs() < 1e-5 && (clip.y / clip.w - 0.5).abs() < 1e-5, "{clip:?}");
+        // Linear depth is the drop below the eye; depth 1 at the eye, smaller below.
+        let view = cam.view() * Vec4::new(150.0, 75.0, 20.0, 1.0);
+        assert!((-view.z - 480.0).abs() < 1e-3);
+        assert!(clip.z > 0.0 && clip.z < 1.0);
+        let back = cam.unproject(0.5, 0.5, 480.0, 2.0);
+        assert!((back - Vec3::new(150.0, 75.0, 20.0)).length() < 1e-2, "{back}");
+        // Heading 90: east is up in the image.
+        let east_up = Camera { yaw: 90.0, ..cam };
+        let clip = east_up.projection(2.0) * east_up.view() * Vec4::new(150.0, 50.0, 0.0, 1.0);
+        assert!(clip.x.abs() < 1e-5 && clip.y > 0.9, "{clip:?}");
+        assert!(cam.is_valid() && !Camera::plan(0.0, 0.0, 1.0, 0.0).is_valid());
+        assert_eq!(cam.plan_metres_per_pixel(400), Some(0.5));
+    }
+
+    #[test]
+    fn perspective_unproject_inverts_the_projection() {
+        let cam = Camera {
+            position: [10.0, 20.0, 2.0],
+            yaw: 30.0,
+            pitch: -10.0,
+            fov: 60.0,
+            roll: 5.0,
+            projection: Projection::Perspective,
+        };
+        let p = Vec3::new(40.0, 70.0, -3.0);
+        let clip = cam.projection(1.5) * cam.view() * p.extend(1.0);
+        let depth = -(cam.view() * p.extend(1.0)).z;
+        let back = cam.unproject(clip.x / clip.w, clip.y / clip.w, depth, 1.5);
+        assert!((back - p).length() < 1e-3, "{back}");
+    }
+
+    #[test]
     fn positive_roll_turns_the_picture_counter_clockwise() {
-        let cam = Camera { position: [0.0; 3], yaw: 0.0, pitch: 0.0, fov: 60.0, roll: 30.0 };
+        let cam = Camera {
+            position: [0.0; 3],
+            yaw: 0.0,
+            pitch: 0.0,
+            fov: 60.0,
+            roll: 30.0,
+            projection: Projection::Perspective,
+        };
         // A point straight above the view axis appears up and to the left.
         let clip = cam.projection(1.0) * cam.view() * glam::Vec4::new(0.0, 10.0, 1.0, 1.0);
         assert!(clip.x / clip.w < -0.01 && clip.y / clip.w > 0.01, "{clip:?}");

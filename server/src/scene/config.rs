@@ -29,6 +29,15 @@ pub struct SceneConfig {
     pub max_plants: usize,
 }
 
+impl SceneConfig {
+    /// Reads and parses a scene file (without loading what it names).
+    pub fn load(path: &std::path::Path) -> Result<SceneConfig, super::SceneError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|source| super::SceneError::Io { path: path.to_owned(), source })?;
+        toml::from_str(&text).map_err(|e| super::SceneError::Parse { path: path.to_owned(), message: e.to_string() })
+    }
+}
+
 fn default_max_plants() -> usize {
     200_000
 }

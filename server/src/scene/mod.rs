@@ -88,11 +88,15 @@ pub struct Scene {
 impl Scene {
     /// Loads a scene file and everything it names: DEM, models, land cover; places plants.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
-        let config: SceneConfig =
-            toml::from_str(&text).map_err(|e| SceneError::Parse { path: path.to_owned(), message: e.to_string() })?;
+        let config = SceneConfig::load(path)?;
+        Scene::from_config_file(&config, path)
+    }
+
+    /// [`Scene::from_config`] for a config read from the scene file `path`: relative paths are
+    /// resolved against its directory and errors name the file.
+    pub fn from_config_file(config: &SceneConfig, path: &Path) -> Result<Scene, SceneError> {
         let base = path.parent().unwrap_or(Path::new("."));
-        Scene::from_config(&config, base).map_err(|e| match e {
+        Scene::from_config(config, base).map_err(|e| match e {
             SceneError::Invalid(message) => SceneError::Parse { path: path.to_owned(), message },
             other => other,
         })
@@ -164,6 +168,7 @@ impl Scene {
             pitch: cam.pitch,
             fov: cam.fov,
             roll: cam.roll,
+            projection: Default::default(),
         };
         if !default_camera.is_valid() {
             return Err(SceneError::Invalid(

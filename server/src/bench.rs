@@ -1,0 +1,319 @@
+//! `landsketch bench` (SPEC O3): renders scenes of 100 … 100,000 plants generated from the
+//! sample scene's placement rules along a short walk at eye height, in several styles, and
+//! reports per-pass times (median/min/max over the frames), triangles submitted, the share of
+//! the source geometry drawn (the seeds' "% lod", thesis Table 8.1), preprocessing time, peak
+//! RSS and an estimate of GPU memory. No figure here is asserted anywhere; it is measured.
+
+use crate::prep::cache::DiskCache;
+use crate::render::{Gpu, RenderError, RenderOptions, Renderer, Style};
+use crate::scene::camera::Camera;
+use crate::scene::config::SceneConfig;
+use crate::scene::{Scene, SceneError};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Errors of a benchmark run.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error("encoding a frame failed: {0}")]
+    Encode(#[from] image::ImageError),
+    #[error("the sample scene's rules cannot place {target} plants (got {placed})")]
+    Size { target: usize, placed: usize },
+}
+
+/// What to measure.
+#[derive(Debug, Clone)]
+pub struct BenchOptions {
+    /// Frames measured per scene and style (after one warm-up frame).
+    pub frames: usize,
+    pub width: u32,
+    pub height: u32,
+    /// Metres the camera walks forward per frame.
+    pub step: f32,
+}
+
+/// Median, minimum and maximum of a series, in milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Stat {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+impl Stat {
+    /// Summarises `values` (empty → zeros).
+    pub fn of(values: &[f64]) -> Stat {
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        match v.len() {
+            0 => Stat::default(),
+            n => Stat {
+                median: if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) },
+                min: v[0],
+                max: v[n - 1],
+            },
+        }
+    }
+}
+
+/// The figures of one style on one scene.
+#[derive(Debug, Clone, Serialize)]
+pub struct StyleRun {
+    pub style: String,
+    /// Whole frames as the server renders them (no per-pass synchronisation), encode included.
+    pub frame_ms: Stat,
+    /// Frames per second from the median frame.
+    pub fps: f64,
+    /// Per pass, measured in separate frames that wait for the GPU after every pass:
+    /// `cull` (CPU: frustum culling, LOD selection, instance upload), `geometry`,
+    /// `prefilter`, `contour`, `data`, `compose`, `readback`, and `encode` (JPEG, quality 80).
+    pub passes_ms: BTreeMap<String, Stat>,
+    pub triangles: u64,
+    pub percent_drawn: f64,
+    pub plants_drawn: u64,
+    /// Plant draws per level of detail (full, HLP billboards, plant billboard).
+    pub per_level: [u64; 3],
+}
+
+/// The figures of one scene size.
+#[derive(Debug, Clone, Serialize)]
+pub struct SceneRun {
+    pub plants: usize,
+    pub source_triangles: u64,
+    /// Building the renderer: HLPs, billboard baking (or loading them from the cache), upload.
+    pub prep_ms: f64,
+    pub cache_hits: u64,
+    pub cache_misses: u64,
+    /// Peak resident memory of the process after this scene (MiB).
+    pub peak_rss_mib: f64,
+    /// GPU memory of the scene and one frame's targets (MiB, estimated from sizes).
+    pub gpu_mib: f64,
+    pub styles: Vec<StyleRun>,
+}
+
+/// A whole benchmark report.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchReport {
+    pub adapter: String,
+    pub backend: String,
+    pub cpu: String,
+    pub cores: usize,
+    pub width: u32,
+    pub height: u32,
+    pub frames: usize,
+    /// A plain full-screen copy pass at the same size: the floor of any post pass.
+    pub copy_pass_ms: Stat,
+    pub scenes: Vec<SceneRun>,
+}
+
+/// The sample scene with every rule's density scaled so that about `target` plants are placed.
+pub fn scaled_scene(path: &Path, target: usize) -> Result<Scene, BenchError> {
+    let base = SceneConfig::load(path)?;
+    let build = |factor: f64| -> Result<Scene, BenchError> {
+        let mut config = base.clone();
+        for rule in config.layers.iter_mut().flat_map(|l| l.rules.iter_mut()) {
+            rule.density = (rule.density * factor).min(10_000.0);
+        }
+        Ok(Scene::from_config_file(&config, path)?)
+    };
+    let mut factor = 1.0;
+    let mut scene = build(factor)?;
+    // Placement is a jittered grid with minimum spacing: counts grow sublinearly with density,
+    // so correct the factor a few times.
+    for _ in 0..4 {
+        let placed = scene.plant_count();
+        if placed == 0 {
+            return Err(BenchError::Size { target, placed });
+        }
+        let ratio = target as f64 / placed as f64;
+        if (ratio - 1.0).abs() < 0.03 {
+            break;
+        }
+        factor *= ratio;
+        scene = build(factor)?;
+    }
+    let placed = scene.plant_count();
+    if (placed as f64 - target as f64).abs() > 0.1 * target as f64 {
+        return Err(BenchError::Size { target, placed });
+    }
+    Ok(scene)
+}
+
+/// The walk: from the default camera forward along its heading, eye height kept above the
+/// terrain.
+fn walk(scene: &Scene, frames: usize, step: f32) -> Vec<Camera> {
+    let start = scene.default_camera;
+    let eye = scene.terrain.height_at(f64::from(start.position[0]), f64::from(start.position[1]));
+    let eye_height = eye.map_or(1.7, |ground| start.position[2] - ground as f32);
+    let heading = start.yaw.to_radians();
+    (0..frames)
+        .map(|i| {
+            let (x, y) = (
+                start.position[0] + heading.sin() * step * i as f32,
+                start.position[1] + heading.cos() * step * i as f32,
+            );
+            let z = scene
+                .terrain
+                .height_at(f64::from(x), f64::from(y))
+                .map_or(start.position[2], |g| g as f32 + eye_height);
+            Camera { position: [x, y, z], ..start }
+        })
+        .collect()
+}
+
+fn encode_jpeg(image: &image::RgbaImage) -> Result<usize, image::ImageError> {
+    let rgb = image::DynamicImage::ImageRgba8(image.clone()).to_rgb8();
+    let mut bytes = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 80).encode_image(&rgb)?;
+    Ok(bytes.len())
+}
+
+/// Peak resident set size of this process in MiB (Linux; 0 elsewhere).
+pub fn peak_rss_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
+        })
+        .map_or(0.0, |kib: f64| kib / 1024.0)
+}
+
+/// The CPU model name (Linux; "unknown" elsewhere).
+fn cpu_name() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|s| s.trim().to_owned())
+        })
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// Measures one style on one renderer along `cameras`.
+fn run_style(
+    renderer: &Renderer,
+    name: &str,
+    style: &Style,
+    cameras: &[Camera],
+    options: &BenchOptions,
+) -> Result<StyleRun, BenchError> {
+    let (w, h) = (options.width, options.height);
+    // Warm-up: pipelines, first-use allocations.
+    renderer.render(&cameras[0], style, w, h)?;
+    let mut frames = Vec::with_capacity(cameras.len());
+    for camera in cameras {
+        let started = Instant::now();
+        let image = renderer.render(camera, style, w, h)?;
+        encode_jpeg(&image)?;
+        frames.push(started.elapsed().as_secs_f64() * 1e3);
+    }
+    let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    for camera in cameras {
+        let (image, timings) = renderer.render_profiled(camera, style, w, h)?;
+        for (pass, ms) in timings {
+            passes.entry(pass.to_owned()).or_default().push(ms);
+        }
+        let started = Instant::now();
+        encode_jpeg(&image)?;
+        passes.entry("encode".into()).or_default().push(started.elapsed().as_secs_f64() * 1e3);
+    }
+    let stats = renderer.draw_stats(&cameras[cameras.len() / 2], w, h);
+    let frame_ms = Stat::of(&frames);
+    Ok(StyleRun {
+        style: name.to_owned(),
+        fps: 1e3 / frame_ms.median.max(1e-9),
+        frame_ms,
+        passes_ms: passes.iter().map(|(k, v)| (k.clone(), Stat::of(v))).collect(),
+        triangles: stats.triangles,
+        percent_drawn: stats.percent_drawn(),
+        plants_drawn: stats.plants_drawn,
+        per_level: stats.per_level,
+    })
+}
+
+/// Runs the benchmark: for each plant count a scene from `scene_path`'s rules, for each of
+/// `styles` the frames of [`BenchOptions`]. `cache` is the preprocessing cache to use (the
+/// first run bakes, later runs load).
+pub fn run(
+    gpu: Arc<Gpu>,
+    scene_path: &Path,
+    plant_counts: &[usize],
+    styles: &[(String, Style)],
+    options: &BenchOptions,
+    cache: Option<Arc<DiskCache>>,
+    mut progress: impl FnMut(&str),
+) -> Result<BenchReport, BenchError> {
+    let mut scenes = Vec::new();
+    let mut copy_pass_ms = Stat::default();
+    for &plants in plant_counts {
+        progress(&format!("generating the {plants}-plant scene"));
+        let scene = scaled_scene(scene_path, plants)?;
+        let cameras = walk(&scene, options.frames.max(1), options.step);
+        let before = cache.as_ref().map(|c| c.stats()).unwrap_or_default();
+        let started = Instant::now();
+        let renderer =
+            Renderer::with_options(gpu.clone(), &scene, &RenderOptions { cache: cache.clone(), ..Default::default() })?;
+        let prep_ms = started.elapsed().as_secs_f64() * 1e3;
+        let after = cache.as_ref().map(|c| c.stats()).unwrap_or_default();
+        if scenes.is_empty() {
+            copy_pass_ms = Stat::of(&renderer.time_copy_pass(options.width, options.height, options.frames.max(1))?);
+        }
+        let mut runs = Vec::new();
+        for (name, style) in styles {
+            progress(&format!("{} plants, style {name}", scene.plant_count()));
+            runs.push(run_style(&renderer, name, style, &cameras, options)?);
+        }
+        scenes.push(SceneRun {
+            plants: scene.plant_count(),
+            source_triangles: renderer.draw_stats(&cameras[0], options.width, options.height).source_triangles,
+            prep_ms,
+            cache_hits: after.hits - before.hits,
+            cache_misses: after.misses - before.misses,
+            peak_rss_mib: peak_rss_mib(),
+            gpu_mib: renderer.gpu_bytes(options.width, options.height) as f64 / (1024.0 * 1024.0),
+            styles: runs,
+        });
+    }
+    Ok(BenchReport {
+        adapter: gpu.adapter_info.name.clone(),
+        backend: format!("{:?}", gpu.adapter_info.backend),
+        cpu: cpu_name(),
+        cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        width: options.width,
+        height: options.height,
+        frames: options.frames,
+        copy_pass_ms,
+        scenes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_are_median_min_max() {
+        assert_eq!(Stat::of(&[3.0, 1.0, 2.0]), Stat { median: 2.0, min: 1.0, max: 3.0 });
+        assert_eq!(Stat::of(&[4.0, 1.0, 2.0, 3.0]).median, 2.5);
+        assert_eq!(Stat::of(&[]), Stat::default());
+    }
+
+    #[test]
+    fn scaled_scenes_reach_their_plant_count() {
+        let path = Path::new("data/boulder/scene.toml");
+        for target in [100, 1000] {
+            let scene = scaled_scene(path, target).unwrap();
+            let placed = scene.plant_count() as f64;
+            assert!((placed - target as f64).abs() <= 0.1 * target as f64, "{target}: {placed}");
+        }
+    }
+}

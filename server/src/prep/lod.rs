@@ -1,0 +1,337 @@
+//! Levels of detail of a plant (SPEC P4, thesis 7 and Table 8.1): the full model near the
+//! camera, a billboard cloud of its HLPs (cross billboards per HLP, thesis 4.2) with a fitted
+//! trunk cylinder at middle distance, and one cross billboard for the whole plant far away.
+//! Plants smaller than a pixel are not drawn. The level follows the plant's projected height;
+//! in a band around each threshold both levels are drawn with complementary screen-door masks,
+//! so levels blend instead of popping.
+//!
+//! This module builds the CPU side (geometry, atlas layout, level selection); the billboard
+//! textures are baked on the GPU by `render::bake`.
+
+use super::hlp::Sphere;
+use crate::scene::mesh::Mesh;
+use crate::scene::plant::{PartKind, PlantModel};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Level of detail of one drawn plant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LodLevel {
+    /// The full model.
+    Full = 0,
+    /// Cross billboards per HLP plus a trunk cylinder.
+    Hlp = 1,
+    /// One cross billboard for the whole plant.
+    Plant = 2,
+}
+
+impl LodLevel {
+    /// All levels, finest first.
+    pub const ALL: [LodLevel; 3] = [LodLevel::Full, LodLevel::Hlp, LodLevel::Plant];
+
+    /// Index into per-level arrays.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// When each level is used, in projected plant height (pixels).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LodSettings {
+    /// Plants at least this many pixels tall are drawn with the full model.
+    pub full_px: f32,
+    /// Plants at least this tall (and below `full_px`) are drawn as HLP billboard clouds;
+    /// smaller ones as one billboard.
+    pub hlp_px: f32,
+    /// Plants smaller than this are not drawn.
+    pub min_px: f32,
+    /// Half-width of the blend band around each threshold, relative to it (0 = hard switch).
+    pub fade: f32,
+    /// Draw every plant at this level (for tests and comparisons); `None` selects by size.
+    pub force: Option<LodLevel>,
+}
+
+impl Default for LodSettings {
+    fn default() -> Self {
+        LodSettings { full_px: 160.0, hlp_px: 40.0, min_px: 0.75, fade: 0.2, force: None }
+    }
+}
+
+/// One draw of a plant at a level, visible where the screen-door value of a pixel lies in
+/// `mask[0]..mask[1]` (`[0, 1]` draws every pixel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LevelDraw {
+    pub level: LodLevel,
+    pub mask: [f32; 2],
+}
+
+impl LodSettings {
+    /// Checks the thresholds' order and ranges.
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = self.min_px >= 0.0
+            && self.hlp_px >= self.min_px
+            && self.full_px >= self.hlp_px
+            && self.full_px.is_finite()
+            && (0.0..0.5).contains(&self.fade);
+        if ok { Ok(()) } else { Err("LOD thresholds need 0 <= min_px <= hlp_px <= full_px and 0 <= fade < 0.5".into()) }
+    }
+
+    /// The draws of a plant that is `px` pixels tall on screen: none below `min_px`, one level
+    /// away from the thresholds, two complementary masked levels inside a blend band.
+    pub fn select(&self, px: f32) -> [Option<LevelDraw>; 2] {
+        let all = |level| Some(LevelDraw { level, mask: [0.0, 1.0] });
+        if let Some(level) = self.force {
+            return [all(level), None];
+        }
+        if px.is_nan() || px < self.min_px {
+            return [None, None];
+        }
+        for (threshold, fine, coarse) in
+            [(self.full_px, LodLevel::Full, LodLevel::Hlp), (self.hlp_px, LodLevel::Hlp, LodLevel::Plant)]
+        {
+            let (lo, hi) = (threshold * (1.0 - self.fade), threshold * (1.0 + self.fade));
+            if px >= hi {
+                return [all(fine), None];
+            }
+            if px > lo {
+                let w = (px - lo) / (hi - lo);
+                return [
+                    Some(LevelDraw { level: fine, mask: [0.0, w] }),
+                    Some(LevelDraw { level: coarse, mask: [w, 1.0] }),
+                ];
+            }
+        }
+        [all(LodLevel::Plant), None]
+    }
+}
+
+/// The three billboard planes of a cross billboard: (right, up) axes in model space. The
+/// plane's texture is the model seen along `right × up`.
+pub const BILLBOARD_VIEWS: [(Vec3, Vec3); 3] = [(Vec3::X, Vec3::Z), (Vec3::Y, Vec3::Z), (Vec3::X, Vec3::Y)];
+
+/// A cross billboard: a centre and the half-extents of its planes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Billboard {
+    pub center: Vec3,
+    /// Half-extent along the horizontal axes.
+    pub half_width: f32,
+    /// Half-extent along z (vertical planes only; the horizontal plane uses `half_width`).
+    pub half_height: f32,
+    /// Radius of the HLP sphere the billboard stands for (its shading normal's sphere).
+    pub radius: f32,
+}
+
+impl Billboard {
+    /// The billboard of an HLP sphere.
+    pub fn of_sphere(s: &Sphere) -> Billboard {
+        Billboard { center: s.center, half_width: s.radius, half_height: s.radius, radius: s.radius }
+    }
+
+    /// The billboard around a whole model (its bounding box; rotation about z keeps the
+    /// larger horizontal half-extent).
+    pub fn of_model(model: &PlantModel) -> Billboard {
+        let (lo, hi) = model.bounds();
+        let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
+        let half = (hi - lo) * 0.5;
+        let half_width = half.x.max(half.y).max(1e-3);
+        let half_height = half.z.max(1e-3);
+        Billboard { center: (lo + hi) * 0.5, half_width, half_height, radius: half_width.max(half_height) }
+    }
+
+    /// Half-extents (right, up) of view `v` of [`BILLBOARD_VIEWS`].
+    pub fn extents(&self, view: usize) -> (f32, f32) {
+        if BILLBOARD_VIEWS[view].1 == Vec3::Z {
+            (self.half_width, self.half_height)
+        } else {
+            (self.half_width, self.half_width)
+        }
+    }
+
+    /// Orthographic world → clip matrix that bakes view `v` into a tile (wgpu depth 0..1).
+    pub fn bake_matrix(&self, view: usize) -> glam::Mat4 {
+        let (right, up) = BILLBOARD_VIEWS[view];
+        let normal = right.cross(up);
+        let (hr, hu) = self.extents(view);
+        let depth = 2.0 * self.radius.max(hr).max(hu);
+        let eye = self.center + normal * depth;
+        let look = glam::camera::rh::view::look_at_mat4(eye, self.center, up);
+        glam::camera::rh::proj::directx::orthographic(-hr, hr, -hu, hu, 0.0, 2.0 * depth) * look
+    }
+}
+
+/// A texture atlas of square tiles in rows, each with a gutter so mip levels do not bleed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Atlas {
+    pub tile: u32,
+    pub gutter: u32,
+    pub cols: u32,
+    pub rows: u32,
+}
+
+impl Atlas {
+    /// An atlas for `tiles` tiles of `tile` pixels, as square as possible.
+    pub fn new(tiles: usize, tile: u32) -> Atlas {
+        let cols = (tiles.max(1) as f64).sqrt().ceil() as u32;
+        let rows = (tiles.max(1) as u32).div_ceil(cols);
+        Atlas { tile, gutter: (tile / 32).max(1), cols, rows }
+    }
+
+    /// Atlas size in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.cols * self.tile, self.rows * self.tile)
+    }
+
+    /// The inner region (x, y, width, height in pixels) of tile `index`.
+    pub fn viewport(&self, index: usize) -> [u32; 4] {
+        let (col, row) = (index as u32 % self.cols, index as u32 / self.cols);
+        let inner = self.tile - 2 * self.gutter;
+        [col * self.tile + self.gutter, row * self.tile + self.gutter, inner, inner]
+    }
+
+    /// Texture coordinates of the point (s, t) ∈ [−1, 1]² of tile `index` (t up).
+    pub fn uv(&self, index: usize, s: f32, t: f32) -> [f32; 2] {
+        let [x, y, w, h] = self.viewport(index);
+        let (width, height) = self.size();
+        [
+            (x as f32 + (s + 1.0) * 0.5 * w as f32) / width as f32,
+            (y as f32 + (1.0 - t) * 0.5 * h as f32) / height as f32,
+        ]
+    }
+}
+
+/// The cross billboards of `billboards` as one mesh: view `v` of billboard `i` uses atlas tile
+/// `first_tile + 3·i + v`. Returns the mesh and the index of each vertex's billboard.
+pub fn billboard_mesh(billboards: &[Billboard], atlas: &Atlas, first_tile: usize) -> (Mesh, Vec<u32>) {
+    let mut mesh = Mesh::default();
+    let mut owner = Vec::new();
+    for (i, b) in billboards.iter().enumerate() {
+        for (v, (right, up)) in BILLBOARD_VIEWS.iter().enumerate() {
+            let (hr, hu) = b.extents(v);
+            let tile = first_tile + 3 * i + v;
+            let base = mesh.positions.len() as u32;
+            for (s, t) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                mesh.positions.push((b.center + *right * (s * hr) + *up * (t * hu)).to_array());
+                mesh.normals.push(right.cross(*up).to_array());
+                mesh.uvs.push(atlas.uv(tile, s, t));
+                owner.push(i as u32);
+            }
+            mesh.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+    }
+    (mesh, owner)
+}
+
+/// A tapered prism fitted to the trunk of `model`'s wood parts: the axis through the mean of
+/// the lowest quarter of wood vertices, their mean distance from it as the base radius, up to
+/// 80 % of the wood's height. Returns the mesh and the wood part whose material it uses, or
+/// `None` for a model without wood.
+pub fn trunk_cylinder(model: &PlantModel, sides: usize) -> Option<(Mesh, usize)> {
+    let (part_index, _) = model
+        .parts
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.kind == PartKind::Wood && !p.mesh.positions.is_empty())
+        .max_by_key(|(_, p)| p.mesh.positions.len())?;
+    let points: Vec<Vec3> =
+        model.parts_of(PartKind::Wood).flat_map(|p| p.mesh.positions.iter().map(|&q| Vec3::from(q))).collect();
+    let (z0, z1) = points.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+    let low: Vec<Vec3> = points.iter().copied().filter(|p| p.z <= z0 + 0.25 * (z1 - z0)).collect();
+    let axis = low.iter().fold(Vec3::ZERO, |a, p| a + *p) / low.len() as f32;
+    let radius = (low.iter().map(|p| (p.truncate() - axis.truncate()).length()).sum::<f32>() / low.len() as f32)
+        .max(0.01 * (z1 - z0).max(1e-3));
+    let top = z0 + 0.8 * (z1 - z0);
+    let part = &model.parts[part_index];
+    let uv = part.mesh.uvs.iter().fold([0.0f32; 2], |a, u| [a[0] + u[0], a[1] + u[1]]);
+    let uv = [uv[0] / part.mesh.uvs.len().max(1) as f32, uv[1] / part.mesh.uvs.len().max(1) as f32];
+    let mut mesh = Mesh::default();
+    for k in 0..sides {
+        let angle = k as f32 / sides as f32 * std::f32::consts::TAU;
+        let dir = Vec3::new(angle.cos(), angle.sin(), 0.0);
+        for (z, r) in [(z0, radius), (top, 0.6 * radius)] {
+            mesh.positions.push([axis.x + dir.x * r, axis.y + dir.y * r, z]);
+            mesh.normals.push(dir.to_array());
+            mesh.uvs.push(uv);
+        }
+    }
+    for k in 0..sides as u32 {
+        let (a, b) = (2 * k, 2 * ((k + 1) % sides as u32));
+        mesh.indices.extend([a, b, a + 1, b, b + 1, a + 1]);
+    }
+    Some((mesh, part_index))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::procedural::{ProceduralKind, procedural_plant};
+
+    #[test]
+    fn levels_follow_projected_size_and_blend_in_bands() {
+        let s = LodSettings::default();
+        let level = |px| s.select(px).map(|d| d.map(|d| (d.level, d.mask)));
+        assert_eq!(level(500.0), [Some((LodLevel::Full, [0.0, 1.0])), None]);
+        assert_eq!(level(100.0), [Some((LodLevel::Hlp, [0.0, 1.0])), None]);
+        assert_eq!(level(10.0), [Some((LodLevel::Plant, [0.0, 1.0])), None]);
+        assert_eq!(level(0.5), [None, None]);
+        // Exactly on the full/HLP threshold both draw half of the pixels, complementarily.
+        assert_eq!(level(160.0), [Some((LodLevel::Full, [0.0, 0.5])), Some((LodLevel::Hlp, [0.5, 1.0]))]);
+        let forced = LodSettings { force: Some(LodLevel::Plant), ..s };
+        assert_eq!(forced.select(1000.0)[0].map(|d| d.level), Some(LodLevel::Plant));
+        assert!(LodSettings { hlp_px: 500.0, ..s }.validate().is_err());
+        s.validate().unwrap();
+    }
+
+    #[test]
+    fn atlas_tiles_do_not_overlap_and_uvs_stay_inside_their_tile() {
+        let atlas = Atlas::new(10, 64);
+        assert_eq!((atlas.cols, atlas.rows), (4, 3));
+        assert_eq!(atlas.size(), (256, 192));
+        assert_eq!(atlas.viewport(5), [64 + 2, 64 + 2, 60, 60]);
+        let [u0, v0] = atlas.uv(5, -1.0, 1.0);
+        let [u1, v1] = atlas.uv(5, 1.0, -1.0);
+        assert!((u0 - 66.0 / 256.0).abs() < 1e-6 && (v0 - 66.0 / 192.0).abs() < 1e-6);
+        assert!((u1 - 126.0 / 256.0).abs() < 1e-6 && (v1 - 126.0 / 192.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bake_matrix_maps_the_billboard_plane_onto_the_tile() {
+        let b = Billboard { center: Vec3::new(1.0, 2.0, 3.0), half_width: 2.0, half_height: 4.0, radius: 4.0 };
+        for (v, (right, up)) in BILLBOARD_VIEWS.iter().enumerate() {
+            let (hr, hu) = b.extents(v);
+            let m = b.bake_matrix(v);
+            let corner = m.project_point3(b.center + *right * hr + *up * hu);
+            assert!((corner.x - 1.0).abs() < 1e-5 && (corner.y - 1.0).abs() < 1e-5, "view {v}: {corner}");
+            assert!((0.0..=1.0).contains(&corner.z));
+        }
+    }
+
+    #[test]
+    fn billboard_mesh_has_three_quads_per_billboard() {
+        let atlas = Atlas::new(6, 32);
+        let spheres = [Sphere { center: Vec3::ZERO, radius: 1.0 }, Sphere { center: Vec3::Z, radius: 0.5 }];
+        let boards: Vec<_> = spheres.iter().map(Billboard::of_sphere).collect();
+        let (mesh, owner) = billboard_mesh(&boards, &atlas, 0);
+        assert_eq!(mesh.triangle_count(), 12);
+        assert_eq!(owner.iter().filter(|&&o| o == 1).count(), 12);
+        // Every vertex of the second billboard lies on the square of half-size 0.5 about it.
+        for (p, _) in mesh.positions.iter().zip(&owner).filter(|(_, o)| **o == 1) {
+            let d = Vec3::from(*p) - Vec3::Z;
+            assert!((d.abs().max_element() - 0.5).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn trunk_fits_the_wood_of_a_tree() {
+        let model = procedural_plant(ProceduralKind::Broadleaf, 1);
+        let (mesh, part) = trunk_cylinder(&model, 6).unwrap();
+        assert_eq!(model.parts[part].kind, PartKind::Wood);
+        assert_eq!(mesh.triangle_count(), 12);
+        let (lo, hi) = model.bounds();
+        for p in &mesh.positions {
+            assert!((lo[2] - 1e-4..=hi[2]).contains(&p[2]));
+            assert!(p[0].abs() < 0.2 * model.height() && p[1].abs() < 0.2 * model.height(), "{p:?}");
+        }
+    }
+}

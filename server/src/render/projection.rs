@@ -1,0 +1,306 @@
+//! D2–D5: data layers projected onto the rendered landscape (thesis 9.3, Fig. 9.2).
+//!
+//! A full-screen pass (`shaders/data.wgsl`) recovers each pixel's world position from the
+//! linear depth (inverse projection, then inverse view), looks the fields up orthographically
+//! along z, blends a series in time (eq. 9.4) and maps up to [`MAX_MAPPINGS`] fields onto
+//! visual features (Table 9.1): colour, hatch tone, hatch pattern (one TAM per label),
+//! silhouette style (one SAM channel per label) and silhouette density. It writes one
+//! [`DATA_FORMAT`] texel per pixel that the compose pass reads (`shaders/data_common.wgsl`).
+//!
+//! Each time step of a field is resampled onto a grid in scene metres
+//! ([`Field::default_grid_spec`]) and uploaded once as an `R32Float` texture; later frames
+//! reuse it, so moving the camera or the time between steps costs no upload. Scalars are
+//! sampled bilinearly, labels at the nearest cell (with `textureLoad`).
+
+use super::post::{FullscreenPass, Input};
+use super::{Gpu, RenderError};
+use crate::fields::{Field, FieldKind, Lut, MAX_MAPPINGS, Mapping, MappingTarget, SceneGeo};
+use crate::scene::Scene;
+use crate::scene::camera::Camera;
+use bytemuck::{Pod, Zeroable};
+use chrono::{DateTime, Utc};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, PoisonError};
+use wgpu::util::DeviceExt;
+
+/// Format of the data target the compose pass reads (see `shaders/data.wgsl` for the layout).
+pub const DATA_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
+/// Grid value of cells without data in the field textures (NaN is not reliable in shaders).
+const NODATA: f32 = -3.0e38;
+/// Resampled time steps kept on the GPU; the cache is emptied when it grows beyond this.
+const MAX_CACHED_STEPS: usize = 64;
+
+/// A data layer to project: its field and a key naming this version of its data (the store's
+/// id, creation time and step count), under which its GPU textures are cached.
+#[derive(Debug)]
+pub struct DataLayer {
+    /// Cache key; a changed layer needs a new key.
+    pub key: String,
+    /// The field with every time step.
+    pub field: Field,
+}
+
+/// One field mapped onto one visual feature.
+#[derive(Debug, Clone)]
+pub struct DataMapping {
+    /// The layer.
+    pub layer: Arc<DataLayer>,
+    /// Target feature, range, colour map, opacity, direction.
+    pub mapping: Mapping,
+}
+
+/// The data shown in one view: up to [`MAX_MAPPINGS`] mappings at time `time` (`None`: each
+/// field's first step).
+#[derive(Debug, Clone, Default)]
+pub struct DataView {
+    /// The mappings, in request order (colour tints multiply in this order).
+    pub mappings: Vec<DataMapping>,
+    /// Time of the view (D5).
+    pub time: Option<DateTime<Utc>>,
+}
+
+/// Code of a target in the shader (`Slot.params.x`); abstraction is not drawn by the renderer.
+fn feature_code(target: MappingTarget) -> Option<f32> {
+    match target {
+        MappingTarget::Color => Some(1.0),
+        MappingTarget::HatchTone => Some(2.0),
+        MappingTarget::HatchPattern => Some(3.0),
+        MappingTarget::SilhouetteStyle => Some(4.0),
+        MappingTarget::SilhouetteDensity => Some(5.0),
+        MappingTarget::Abstraction => None,
+    }
+}
+
+/// `Slot` in `shaders/data.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, Pod, Zeroable)]
+struct Slot {
+    uv: [f32; 4],
+    params: [f32; 4],
+    range: [f32; 4],
+}
+
+/// `Data` in `shaders/data.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct DataUniform {
+    inv_view_proj: [[f32; 4]; 4],
+    depth_to_clip: [f32; 4],
+    info: [f32; 4],
+    slots: [Slot; MAX_MAPPINGS],
+}
+
+/// One resampled time step on the GPU.
+struct StepTexture {
+    view: wgpu::TextureView,
+    /// Scene metres → texture coordinates ([`crate::fields::FieldGrid::uv_transform`]).
+    uv: [f32; 4],
+}
+
+/// The projection pass, its cache of field textures and the scene's geography.
+pub struct ProjectionPass {
+    pass: FullscreenPass,
+    scene: Result<SceneGeo, String>,
+    steps: Mutex<HashMap<(String, usize), Arc<StepTexture>>>,
+    empty_grid: wgpu::TextureView,
+    empty_lut: wgpu::TextureView,
+}
+
+/// The pass's inputs for one frame.
+pub struct DataInputs<'a> {
+    /// The camera of the frame.
+    pub camera: &'a Camera,
+    /// Image size in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// The style's TAM index (where no hatch-pattern mapping applies) and the number of TAMs.
+    pub tams: (usize, usize),
+    /// Whether style layers use TAMs other than `tams.0` (thesis 8.2.8): then the pass runs
+    /// even without mappings, so every pixel gets the TAM of its layer's style.
+    pub layer_tams: bool,
+    /// The post uniform buffer (binding 0 of every post pass).
+    pub post: &'a wgpu::Buffer,
+    /// Linear depth of the G-buffer.
+    pub depth: &'a wgpu::TextureView,
+    /// Object IDs of the G-buffer.
+    pub ids: &'a wgpu::TextureView,
+}
+
+fn texture_2d(
+    gpu: &Gpu,
+    label: &str,
+    format: wgpu::TextureFormat,
+    (width, height): (u32, u32),
+    bytes: &[u8],
+) -> wgpu::TextureView {
+    let texture = gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytes,
+    );
+    texture.create_view(&Default::default())
+}
+
+impl ProjectionPass {
+    /// Compiles the pass for `scene` (whose DEM gives the geography fields are resampled to).
+    pub fn new(gpu: &Gpu, scene: &Scene) -> ProjectionPass {
+        use Input::*;
+        let inputs = [Uniform, Float, Uint, Float, Float, Float, Float, Float, Float, Float, Float, Float];
+        ProjectionPass {
+            pass: FullscreenPass::new(
+                &gpu.device,
+                "data",
+                include_str!("../../../shaders/data.wgsl"),
+                "fs_data",
+                &inputs,
+                DATA_FORMAT,
+            ),
+            scene: SceneGeo::from_terrain(&scene.terrain).map_err(|e| e.to_string()),
+            steps: Mutex::default(),
+            empty_grid: texture_2d(gpu, "no data", wgpu::TextureFormat::R32Float, (1, 1), &NODATA.to_le_bytes()),
+            empty_lut: texture_2d(gpu, "no colours", wgpu::TextureFormat::Rgba8Unorm, (1, 1), &[0; 4]),
+        }
+    }
+
+    /// Checks that `data` can be drawn: at most [`MAX_MAPPINGS`] mappings, none onto
+    /// abstraction (drawn in the geometry stage, not implemented), valid colour maps.
+    pub fn check(data: &DataView) -> Result<(), RenderError> {
+        if data.mappings.len() > MAX_MAPPINGS {
+            return Err(RenderError::Data(format!(
+                "at most {MAX_MAPPINGS} fields can be mapped at once, {} given",
+                data.mappings.len()
+            )));
+        }
+        for m in &data.mappings {
+            if feature_code(m.mapping.target).is_none() {
+                return Err(RenderError::Data(format!(
+                    "mapping of {} onto {}: not supported by the renderer",
+                    m.mapping.layer,
+                    m.mapping.target.as_str()
+                )));
+            }
+            Lut::for_field(&m.mapping.color_spec(), &m.layer.field).map_err(|e| RenderError::Data(e.to_string()))?;
+        }
+        Ok(())
+    }
+
+    /// Step `step` of `layer` as a texture, resampled and uploaded on first use.
+    fn step_texture(&self, gpu: &Gpu, layer: &DataLayer, step: usize) -> Result<Arc<StepTexture>, RenderError> {
+        let key = (layer.key.clone(), step);
+        if let Some(texture) = self.steps.lock().unwrap_or_else(PoisonError::into_inner).get(&key) {
+            return Ok(texture.clone());
+        }
+        let scene =
+            self.scene.as_ref().map_err(|e| RenderError::Data(format!("the scene cannot place fields: {e}")))?;
+        let field = &layer.field;
+        let grid = field
+            .default_grid_spec(scene)
+            .and_then(|spec| field.resample(step, scene, &spec))
+            .map_err(|e| RenderError::Data(e.to_string()))?;
+        let bytes: Vec<u8> =
+            grid.values.iter().flat_map(|v| if v.is_nan() { NODATA } else { *v }.to_le_bytes()).collect();
+        let size = (grid.spec.width as u32, grid.spec.height as u32);
+        let view = texture_2d(gpu, "field step", wgpu::TextureFormat::R32Float, size, &bytes);
+        let texture = Arc::new(StepTexture { view, uv: grid.uv_transform() });
+        let mut steps = self.steps.lock().unwrap_or_else(PoisonError::into_inner);
+        if steps.len() >= MAX_CACHED_STEPS {
+            steps.clear();
+        }
+        steps.insert(key, texture.clone());
+        Ok(texture)
+    }
+
+    /// Records the pass into `encoder`, writing `target`: the projected `data`, or (without
+    /// mappings) a plain clear to "no data" with the style's TAM.
+    pub fn encode(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        inputs: &DataInputs<'_>,
+        data: &DataView,
+    ) -> Result<(), RenderError> {
+        if data.mappings.is_empty() && !inputs.layer_tams {
+            let clear = wgpu::Color { r: f64::from(u32::MAX), g: 0.0, b: inputs.tams.0 as f64, a: 1.0 };
+            encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("data clear"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            return Ok(());
+        }
+        Self::check(data)?;
+        let mut slots = [Slot::default(); MAX_MAPPINGS];
+        let mut textures = Vec::new();
+        for (slot, m) in slots.iter_mut().zip(&data.mappings) {
+            let field = &m.layer.field;
+            let sample = field.time_sample(data.time);
+            let lower = self.step_texture(gpu, &m.layer, sample.lower)?;
+            let upper = self.step_texture(gpu, &m.layer, sample.upper)?;
+            let lut = Lut::for_field(&m.mapping.color_spec(), field).map_err(|e| RenderError::Data(e.to_string()))?;
+            let [lo, hi] = lut.range.unwrap_or([0.0, 1.0]);
+            let label = field.kind() == FieldKind::Label;
+            *slot = Slot {
+                uv: lower.uv,
+                params: [
+                    feature_code(m.mapping.target).unwrap_or(0.0),
+                    f32::from(u8::from(label)),
+                    sample.weight as f32,
+                    m.mapping.opacity,
+                ],
+                range: [lo as f32, hi as f32, field.classes().len() as f32, f32::from(u8::from(m.mapping.reverse))],
+            };
+            let lut_view = texture_2d(
+                gpu,
+                "colour table",
+                wgpu::TextureFormat::Rgba8Unorm,
+                (lut.colors.len() as u32, 1),
+                &lut.to_rgba_bytes(),
+            );
+            textures.push((lower, upper, lut_view));
+        }
+        let projection = inputs.camera.projection(inputs.width as f32 / inputs.height as f32);
+        let (z, w) = (projection.z_axis, projection.w_axis);
+        let uniform = DataUniform {
+            inv_view_proj: (projection * inputs.camera.view()).inverse().to_cols_array_2d(),
+            depth_to_clip: [-z.z, w.z, -z.w, w.w],
+            info: [inputs.width as f32, inputs.height as f32, inputs.tams.0 as f32, inputs.tams.1 as f32],
+            slots,
+        };
+        let buffer = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("data"),
+            contents: bytemuck::bytes_of(&uniform),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let view = wgpu::BindingResource::TextureView;
+        let mut resources = vec![buffer.as_entire_binding(), view(inputs.depth), view(inputs.ids)];
+        for i in 0..MAX_MAPPINGS {
+            match textures.get(i) {
+                Some((lower, upper, lut)) => resources.extend([view(&lower.view), view(&upper.view), view(lut)]),
+                None => resources.extend([view(&self.empty_grid), view(&self.empty_grid), view(&self.empty_lut)]),
+            }
+        }
+        let bind_group = self.pass.bind_group(&gpu.device, inputs.post, &resources);
+        self.pass.encode(encoder, target, &bind_group);
+        Ok(())
+    }
+}

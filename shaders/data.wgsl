@@ -1,0 +1,192 @@
+// D2 projection of data layers (thesis 9.3, Fig. 9.2): for every pixel the world position is
+// recovered from the linear depth (inverse projection, then inverse view), the fields are
+// looked up orthographically along z (u = a·x + b, v = c·y + d in scene metres), blended in
+// time (eq. 9.4) and mapped onto visual features (Table 9.1). The result is one Rgba32Uint
+// texel per pixel that the compose pass reads through `shaders/data_common.wgsl`:
+//   x  colour tint, RGBA8: the sketch is multiplied by rgb (white: unchanged)
+//   y  hatch tone and its weight, unorm16 each: t' = mix(t, tone, weight)
+//   z  TAM index (bits 0–7) and SAM channel + 1 (bits 8–15; 0 = chosen by tone)
+//   w  1 where silhouettes are drawn, 0 where silhouette density drops them
+
+struct Slot {
+    // u = a·x + b, v = c·y + d: scene metres → field texture (`FieldGrid::uv_transform`)
+    uv: vec4<f32>,
+    // x: target (0 none, 1 colour, 2 hatch tone, 3 hatch pattern, 4 silhouette style,
+    // 5 silhouette density), y: 1 label / 0 scalar, z: u_t of eq. 9.4, w: opacity
+    params: vec4<f32>,
+    // x, y: values at the two ends of the range (scalars); z: label classes; w: 1 reversed
+    range: vec4<f32>,
+};
+
+struct Data {
+    inv_view_proj: mat4x4<f32>,
+    // the projection's z and w rows at view (0, 0, -d, 1): z_clip = x·d + y, w_clip = z·d + w
+    depth_to_clip: vec4<f32>,
+    // x: image width, y: image height, z: style TAM index, w: number of TAMs
+    info: vec4<f32>,
+    slots: array<Slot, 3>,
+};
+
+@group(0) @binding(1) var<uniform> data: Data;
+@group(0) @binding(2) var depth_tex: texture_2d<f32>;
+@group(0) @binding(3) var id_tex: texture_2d<u32>;
+// per slot: the bracketing time steps t_i and t_i+1 (R32Float grids) and the colour table
+@group(0) @binding(4) var lower0: texture_2d<f32>;
+@group(0) @binding(5) var upper0: texture_2d<f32>;
+@group(0) @binding(6) var lut0: texture_2d<f32>;
+@group(0) @binding(7) var lower1: texture_2d<f32>;
+@group(0) @binding(8) var upper1: texture_2d<f32>;
+@group(0) @binding(9) var lut1: texture_2d<f32>;
+@group(0) @binding(10) var lower2: texture_2d<f32>;
+@group(0) @binding(11) var upper2: texture_2d<f32>;
+@group(0) @binding(12) var lut2: texture_2d<f32>;
+
+// Grid cells without data hold this value (NaN is not reliable in shaders).
+const NODATA: f32 = -3.0e38;
+const NO_VALUE: f32 = -1.0e38;
+const BACKGROUND: f32 = 1.0e6;
+const SAM_CHANNELS: u32 = 4u;
+
+// Thesis 9.3: camera-space position from depth by the inverse projection, world position by
+// the inverse view (one matrix here). The NDC depth of linear depth d comes from the
+// projection's own z and w rows, so perspective and plan views are treated alike.
+fn world_position(frag: vec2<f32>, depth: f32) -> vec3<f32> {
+    let ndc_xy = vec2<f32>(frag.x / data.info.x * 2.0 - 1.0, 1.0 - frag.y / data.info.y * 2.0);
+    let z = (data.depth_to_clip.x * depth + data.depth_to_clip.y) / (data.depth_to_clip.z * depth + data.depth_to_clip.w);
+    let world = data.inv_view_proj * vec4<f32>(ndc_xy, z, 1.0);
+    return world.xyz / world.w;
+}
+
+fn texel(tex: texture_2d<f32>, c: vec2<i32>) -> f32 {
+    return textureLoad(tex, clamp(c, vec2<i32>(0), vec2<i32>(textureDimensions(tex)) - 1), 0).r;
+}
+
+// D1: scalars bilinearly between cell centres; a point with a nodata neighbour of non-zero
+// weight is nodata. Outside the grid there is no data.
+fn bilinear(tex: texture_2d<f32>, uv: vec2<f32>) -> f32 {
+    if any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) {
+        return NODATA;
+    }
+    let st = uv * vec2<f32>(textureDimensions(tex)) - 0.5;
+    let i = vec2<i32>(floor(st));
+    let f = st - floor(st);
+    let w = vec4<f32>((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
+    let v = vec4<f32>(texel(tex, i), texel(tex, i + vec2<i32>(1, 0)), texel(tex, i + vec2<i32>(0, 1)), texel(tex, i + vec2<i32>(1, 1)));
+    if any((v < vec4<f32>(NO_VALUE)) & (w > vec4<f32>(0.0))) {
+        return NODATA;
+    }
+    return dot(select(v, vec4<f32>(0.0), v < vec4<f32>(NO_VALUE)), w);
+}
+
+// D1: labels at the nearest cell, with textureLoad (label indices must never be blended).
+fn nearest(tex: texture_2d<f32>, uv: vec2<f32>) -> f32 {
+    if any(uv < vec2<f32>(0.0)) || any(uv >= vec2<f32>(1.0)) {
+        return NODATA;
+    }
+    return texel(tex, vec2<i32>(floor(uv * vec2<f32>(textureDimensions(tex)))));
+}
+
+// The field of a slot at the world point: nearest label of the nearest step, or eq. 9.4
+// S(t) = (1 - u_t) S(t_i) + u_t S(t_i+1) for scalars (nodata where a weighted step is).
+fn field_value(slot: Slot, lower: texture_2d<f32>, upper: texture_2d<f32>, world: vec3<f32>) -> f32 {
+    let uv = vec2<f32>(slot.uv.x * world.x + slot.uv.y, slot.uv.z * world.y + slot.uv.w);
+    if slot.params.y > 0.5 {
+        return nearest(lower, uv);
+    }
+    let a = bilinear(lower, uv);
+    let u = slot.params.z;
+    if u <= 0.0 {
+        return a;
+    }
+    let b = bilinear(upper, uv);
+    if a < NO_VALUE || b < NO_VALUE {
+        return NODATA;
+    }
+    return mix(a, b, u);
+}
+
+// The value as a position 0..1 along the mapping: scalars over the range (reversed if asked),
+// labels by class index.
+fn normalized(slot: Slot, v: f32) -> f32 {
+    var n = 0.0;
+    if slot.params.y > 0.5 {
+        n = v / max(slot.range.z - 1.0, 1.0);
+    } else {
+        n = (v - slot.range.x) / (slot.range.y - slot.range.x);
+    }
+    n = saturate(n);
+    return select(n, 1.0 - n, slot.range.w > 0.5);
+}
+
+// The colour table entry: scalars by round((v - lo)/(hi - lo)·255) (the table is already
+// reversed), labels by class index (`fields::Lut::index_of`).
+fn lut_color(slot: Slot, lut: texture_2d<f32>, v: f32) -> vec4<f32> {
+    var i = round(v);
+    if slot.params.y < 0.5 {
+        i = round((v - slot.range.x) / (slot.range.y - slot.range.x) * 255.0);
+    }
+    return textureLoad(lut, vec2<i32>(i32(clamp(i, 0.0, 255.0)), 0), 0);
+}
+
+fn hash(x: u32) -> u32 {
+    var h = x * 747796405u + 2891336453u;
+    h = ((h >> ((h >> 28u) + 4u)) ^ h) * 277803737u;
+    return (h >> 22u) ^ h;
+}
+
+struct Features {
+    tint: vec3<f32>,
+    tone: vec2<f32>,
+    tam: u32,
+    sam: u32,
+    keep: u32,
+};
+
+// Applies one slot's value to the features (Table 9.1 targets).
+fn apply(slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: ptr<function, Features>) {
+    if v < NO_VALUE {
+        return;
+    }
+    let feature = u32(slot.params.x);
+    let n = normalized(slot, v);
+    let label = u32(max(round(v), 0.0));
+    switch feature {
+        case 1u: {
+            let c = lut_color(slot, lut, v);
+            (*f).tint *= mix(vec3<f32>(1.0), c.rgb, c.a);
+        }
+        case 2u: {
+            // High values hatch darkly.
+            (*f).tone = vec2<f32>(1.0 - n, slot.params.w);
+        }
+        case 3u: {
+            (*f).tam = label % u32(data.info.w);
+        }
+        case 4u: {
+            (*f).sam = label % SAM_CHANNELS + 1u;
+        }
+        case 5u: {
+            // A plant keeps its silhouettes with probability n (per object, stable in time).
+            let keep = f32(hash(object) & 0xffffu) / 65535.0 < n * slot.params.w + (1.0 - slot.params.w);
+            (*f).keep = select(0u, 1u, keep);
+        }
+        default: {}
+    }
+}
+
+@fragment
+fn fs_data(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<u32> {
+    let p = vec2<i32>(frag.xy);
+    // Without a hatch-pattern mapping a pixel keeps the TAM of its layer's style (thesis 8.2.8).
+    let own_tam = u32(styles.slots[style_slot(textureLoad(id_tex, p, 0).x)].color2.z);
+    var f = Features(vec3<f32>(1.0), vec2<f32>(0.0), own_tam, 0u, 1u);
+    let depth = textureLoad(depth_tex, p, 0).r;
+    if depth < BACKGROUND {
+        let world = world_position(frag.xy, depth);
+        let object = textureLoad(id_tex, p, 0).x;
+        apply(data.slots[0], lut0, field_value(data.slots[0], lower0, upper0, world), object, &f);
+        apply(data.slots[1], lut1, field_value(data.slots[1], lower1, upper1, world), object, &f);
+        apply(data.slots[2], lut2, field_value(data.slots[2], lower2, upper2, world), object, &f);
+    }
+    return vec4<u32>(pack4x8unorm(vec4<f32>(f.tint, 1.0)), pack2x16unorm(f.tone), f.tam | (f.sam << 8u), f.keep);
+}

@@ -1,0 +1,37 @@
+// Data layers (thesis 9.3) as the compose pass reads them: one Rgba32Uint texel per pixel
+// written by the projection pass (`shaders/data.wgsl`, `render::projection`), or cleared to
+// "no data" (white tint, no tone weight, the style's TAM, silhouettes kept).
+
+@group(0) @binding(11) var data_tex: texture_2d<u32>;
+
+fn data_at(p: vec2<i32>) -> vec4<u32> {
+    return textureLoad(data_tex, p, 0);
+}
+
+// D3 hatch tone: t' = mix(t, tone, weight).
+fn data_tone(d: vec4<u32>, t: f32) -> f32 {
+    let tone = unpack2x16unorm(d.y);
+    return mix(t, tone.x, tone.y);
+}
+
+// D3 hatch pattern: the first layer of the pixel's TAM in the array of all TAMs.
+fn data_tam_layer(d: vec4<u32>, levels: i32) -> i32 {
+    return i32(d.z & 0xffu) * levels;
+}
+
+// D3 silhouette style: the SAM channel of the pixel's label, else `by_tone`.
+fn data_sam_channel(d: vec4<u32>, by_tone: i32) -> i32 {
+    let channel = i32((d.z >> 8u) & 0xffu);
+    return select(by_tone, channel - 1, channel > 0);
+}
+
+// D3 silhouette density: 1 where the pixel's plant keeps its silhouettes.
+fn data_silhouettes(d: vec4<u32>) -> f32 {
+    return f32(d.w);
+}
+
+// D3 colour: the sketch multiplied by the colour maps' tint (ink stays dark, paper takes the
+// colour).
+fn data_tint(d: vec4<u32>, rgb: vec3<f32>) -> vec3<f32> {
+    return rgb * unpack4x8unorm(d.x).rgb;
+}

@@ -1,0 +1,266 @@
+//! The style space (SPEC R1, R7–R10): every preset on the sample scene, the photorealism →
+//! sketch strip (thesis 8.2.7), colour and photorealistic shading on a plain with known
+//! pixels, HLP abstraction (eq. 4.8), per-layer styles in one frame (thesis 8.2.8) and errors.
+//! References are 256 × 192 and compared with tolerance; each test also asserts properties.
+
+mod common;
+
+use common::{assert_matches_reference, gpu, luminance, trees_on_a_plain};
+use landsketch::render::presets::PRESETS;
+use landsketch::render::style::{FrameStyle, TERRAIN_LAYER};
+use landsketch::render::{RenderError, Renderer, Style};
+use landsketch::scene::Scene;
+use landsketch::scene::Sun;
+use landsketch::scene::camera::Camera;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+const SIZE: (u32, u32) = (256, 192);
+
+fn sample() -> &'static (Scene, Renderer) {
+    static SAMPLE: OnceLock<(Scene, Renderer)> = OnceLock::new();
+    SAMPLE.get_or_init(|| {
+        let scene = Scene::load(Path::new("data/boulder/scene.toml")).expect("sample scene");
+        let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+        (scene, renderer)
+    })
+}
+
+fn reference(name: &str) -> PathBuf {
+    PathBuf::from(format!("tests/reference/styles/{name}.png"))
+}
+
+fn preset(name: &str) -> Style {
+    landsketch::render::presets::preset(name).expect("preset")
+}
+
+/// `styles` with every style's ink set to `ink`.
+fn with_ink(styles: &FrameStyle, ink: [f32; 3]) -> FrameStyle {
+    let mut styles = styles.clone();
+    for style in std::iter::once(&mut styles.base).chain(styles.layers.values_mut()) {
+        style.ink = ink;
+    }
+    styles
+}
+
+/// Renders `styles` with black and with white ink: the image (black ink) and the ink coverage
+/// of every pixel. The output is mix(base, ink, coverage), so the difference of the two
+/// renders divided by the difference of the inks is the coverage.
+fn render_with_coverage(renderer: &Renderer, camera: &Camera, styles: &FrameStyle) -> (image::RgbaImage, Vec<f32>) {
+    let black = renderer.render(camera, with_ink(styles, [0.0; 3]), SIZE.0, SIZE.1).unwrap();
+    let white = renderer.render(camera, with_ink(styles, [1.0; 3]), SIZE.0, SIZE.1).unwrap();
+    let coverage = black
+        .pixels()
+        .zip(white.pixels())
+        .map(|(b, w)| (0..3).map(|c| f32::from(w[c]) - f32::from(b[c])).sum::<f32>() / (3.0 * 255.0))
+        .collect();
+    (black, coverage)
+}
+
+fn mean(values: &[f32]) -> f32 {
+    values.iter().sum::<f32>() / values.len() as f32
+}
+
+/// Mean absolute difference of two images, 0..1.
+fn difference(a: &image::RgbaImage, b: &image::RgbaImage) -> f32 {
+    let sum: f32 =
+        a.pixels().zip(b.pixels()).map(|(p, q)| (0..3).map(|c| f32::from(p[c].abs_diff(q[c]))).sum::<f32>()).sum();
+    sum / (3.0 * 255.0 * (a.width() * a.height()) as f32)
+}
+
+/// Saturation (max − min of the channels, 0..1) of a pixel.
+fn chroma(p: &image::Rgba<u8>) -> f32 {
+    f32::from(p[0].max(p[1]).max(p[2]) - p[0].min(p[1]).min(p[2])) / 255.0
+}
+
+#[test]
+fn every_preset_matches_its_reference() {
+    let (scene, renderer) = sample();
+    let camera = scene.default_camera;
+    for p in PRESETS {
+        let styles = FrameStyle::from(p.style().unwrap());
+        let image = renderer.render(&camera, &styles, SIZE.0, SIZE.1).unwrap();
+        assert_matches_reference(&image, &reference(&format!("preset_{}", p.name)), 0.02);
+        let (_, coverage) = render_with_coverage(renderer, &camera, &styles);
+        let ink = coverage.iter().filter(|c| **c > 0.1).count() as f32 / coverage.len() as f32;
+        let colourful = image.pixels().filter(|p| chroma(p) > 0.15).count() as f32 / coverage.len() as f32;
+        match p.name {
+            // No line, no stroke anywhere; colour everywhere, a blue sky on top.
+            "photorealism" => {
+                assert_eq!(ink, 0.0, "photorealism draws ink");
+                let sky = image.get_pixel(SIZE.0 / 2, 2);
+                assert!(sky[2] > sky[0] + 40, "sky {sky:?}");
+            }
+            // Pen and ink: no colour, paper sky, ink on a part of the image.
+            "full_npr" | "silhouettes_hatching" | "minimalistic" => {
+                assert!(colourful < 0.01, "{}: colour on {colourful}", p.name);
+                assert!(ink > 0.002 && ink < 0.5, "{}: ink covers {ink}", p.name);
+                assert!(luminance(image.get_pixel(SIZE.0 / 2, 2)) > 0.95, "{}: sky not paper", p.name);
+            }
+            _ => {
+                assert!(colourful > 0.02, "{}: colour on only {colourful}", p.name);
+                assert!(ink > 0.002, "{}: ink covers only {ink}", p.name);
+            }
+        }
+    }
+    // Minimalistic draws contours only: far less ink than the full pen-and-ink preset.
+    let coverage = |name: &str| mean(&render_with_coverage(renderer, &camera, &preset(name).into()).1);
+    assert!(coverage("minimalistic") < 0.5 * coverage("full_npr"));
+}
+
+#[test]
+fn photorealism_strip_is_a_continuous_progression() {
+    let (scene, renderer) = sample();
+    let camera = scene.default_camera;
+    let mut images = Vec::new();
+    let mut inks = Vec::new();
+    for (i, photorealism) in [1.0f32, 0.75, 0.5, 0.25, 0.0].into_iter().enumerate() {
+        let style = Style { photorealism, ..preset("full_npr") };
+        let (image, coverage) = render_with_coverage(renderer, &camera, &style.into());
+        assert_matches_reference(&image, &reference(&format!("strip_{i}")), 0.02);
+        inks.push(mean(&coverage));
+        images.push(image);
+    }
+    // Ink grows along the strip, from none at full photorealism.
+    assert_eq!(inks[0], 0.0);
+    for w in inks.windows(2) {
+        assert!(w[1] > w[0], "ink coverage {inks:?} does not grow");
+    }
+    // Continuity: every step changes the image by less than half of the whole way.
+    let whole = difference(&images[0], &images[4]);
+    for w in images.windows(2) {
+        let step = difference(&w[0], &w[1]);
+        assert!(step < 0.5 * whole, "a step of {step} out of {whole}");
+    }
+}
+
+/// A bare plain (albedo 0.5, 0.4, 0.3) lit from 30° elevation, seen from 20 m looking down.
+fn lit_plain() -> (Renderer, Camera) {
+    let mut scene = trees_on_a_plain(&[]);
+    scene.terrain.albedo = [0.5, 0.4, 0.3];
+    scene.sun = Sun { azimuth: 180.0, elevation: 30.0 };
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    let camera = Camera { position: [0.0, 0.0, 120.0], pitch: -30.0, ..scene.default_camera };
+    (renderer, camera)
+}
+
+fn encode_srgb(c: f32) -> f32 {
+    if c <= 0.0031308 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
+}
+
+#[test]
+fn photoreal_pixels_are_albedo_times_lambert_and_ambient() {
+    let (renderer, camera) = lit_plain();
+    let style = Style { photorealism: 1.0, ambient: 0.3, ..Style::default() };
+    let image = renderer.render(&camera, &style, SIZE.0, SIZE.1).unwrap();
+    // Flat ground, normal (0, 0, 1): N·L = sin 30° = 0.5; light = 0.3 + 0.7·0.5 = 0.65.
+    let light = 0.3 + 0.7 * 0.5;
+    let ground = image.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
+    for (c, albedo) in [0.5f32, 0.4, 0.3].into_iter().enumerate() {
+        let expected = encode_srgb(albedo * light) * 255.0;
+        assert!((f32::from(ground[c]) - expected).abs() <= 2.0, "channel {c}: {ground:?} vs {expected}");
+    }
+    // The sky above the horizon runs from the horizon colour towards the zenith colour.
+    let [top, low] = [image.get_pixel(SIZE.0 / 2, 1), image.get_pixel(SIZE.0 / 2, SIZE.1 / 4)];
+    assert!(top[2] > top[0] && chroma(top) > chroma(low), "sky {top:?} above {low:?}");
+    assert_matches_reference(&image, &reference("photoreal_plain"), 0.01);
+
+    // Colour over the sketch: saturation 0 greys it, Gooch turns it cool or warm, the toon ramp
+    // quantizes the light (0.65 with 3 bands → the middle band, 0.5).
+    let sketch = Style { color: 1.0, hatch_strength: 0.0, contour_strength: 0.0, ambient: 0.3, ..Style::default() };
+    let grey = renderer.render(&camera, &Style { color_saturation: 0.0, ..sketch.clone() }, SIZE.0, SIZE.1).unwrap();
+    assert!(chroma(grey.get_pixel(SIZE.0 / 2, SIZE.1 - 10)) < 0.01);
+    let toon = Style { toon: 1.0, toon_levels: 3, ..sketch.clone() };
+    let image = renderer.render(&camera, &toon, SIZE.0, SIZE.1).unwrap();
+    let ground = image.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
+    let expected = encode_srgb(0.5 * 0.5) * 255.0;
+    assert!((f32::from(ground[0]) - expected).abs() <= 2.0, "toon {ground:?} vs {expected}");
+    let gooch = renderer.render(&camera, &Style { gooch: 1.0, ..sketch }, SIZE.0, SIZE.1).unwrap();
+    let g = gooch.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
+    // k = (1 + N·L)/2 = 0.75: 0.25·(0.2·k_d + (0, 0, 0.4)) + 0.75·(0.6·k_d + (0.4, 0.4, 0)).
+    let expected_blue = encode_srgb(0.25 * (0.2 * 0.3 + 0.4) + 0.75 * (0.6 * 0.3)) * 255.0;
+    assert!((f32::from(g[2]) - expected_blue).abs() <= 2.0, "gooch {g:?} vs blue {expected_blue}");
+}
+
+#[test]
+fn hlp_abstraction_pulls_leaves_onto_their_spheres() {
+    let scene = trees_on_a_plain(&[[0.0, 0.0]]);
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    let camera = Camera { position: [0.0, -16.0, 105.5], pitch: 8.0, fov: 50.0, ..scene.default_camera };
+    let plain = Style { hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
+    let original = renderer.render(&camera, &plain, SIZE.0, SIZE.1).unwrap();
+    let abstract_ = renderer.render(&camera, &Style { hlp_abstraction: 1.0, ..plain.clone() }, SIZE.0, SIZE.1).unwrap();
+    assert_matches_reference(&abstract_, &reference("hlp_abstraction"), 0.02);
+    // Eq. 4.8 is a blend: half-way differs from the original less than the full projection,
+    // and the trunk (no HLP) does not move.
+    let half = renderer.render(&camera, &Style { hlp_abstraction: 0.5, ..plain }, SIZE.0, SIZE.1).unwrap();
+    let (to_half, to_full) = (difference(&half, &original), difference(&abstract_, &original));
+    assert!(0.0 < to_half && to_half < to_full, "{to_half} vs {to_full}");
+    let trunk =
+        |image: &image::RgbaImage| (150..SIZE.1).map(|y| luminance(image.get_pixel(SIZE.0 / 2, y))).collect::<Vec<_>>();
+    assert_eq!(trunk(&abstract_), trunk(&original));
+}
+
+#[test]
+fn layers_have_styles_of_their_own_in_one_frame() {
+    let (scene, renderer) = sample();
+    let camera = scene.default_camera;
+    let base = preset("full_npr");
+    let overrides = serde_json::json!({"preset": "photorealism"});
+    let mut mixed = FrameStyle::from(base.clone());
+    mixed.layers.insert("existing".into(), base.layer(overrides.as_object().unwrap()).unwrap());
+    let image = renderer.render(&camera, &mixed, SIZE.0, SIZE.1).unwrap();
+    assert_matches_reference(&image, &reference("mixed_existing_planned"), 0.02);
+
+    let ids = renderer.object_ids(&camera, SIZE.0, SIZE.1).unwrap();
+    let (_, coverage) = render_with_coverage(renderer, &camera, &mixed);
+    let photo = renderer.render(&camera, preset("photorealism"), SIZE.0, SIZE.1).unwrap();
+    let sketch = renderer.render(&camera, &base, SIZE.0, SIZE.1).unwrap();
+    let layer_pixels = |code: u32| ids.iter().enumerate().filter(move |(_, id)| *id >> 24 == code).map(|(i, _)| i);
+    // `existing` (layer code 2) is photorealistic: no ink, and the pixels of the photorealistic
+    // frame (the frames' geometry differs only where `planned` leaves are abstracted).
+    let existing: Vec<usize> = layer_pixels(2).collect();
+    assert!(existing.len() > 100, "existing plants cover {} pixels", existing.len());
+    let same = |a: &image::RgbaImage, i: usize| {
+        let (x, y) = (i as u32 % SIZE.0, i as u32 / SIZE.0);
+        (0..3).all(|c| a.get_pixel(x, y)[c].abs_diff(image.get_pixel(x, y)[c]) <= 2)
+    };
+    let inked = existing.iter().filter(|&&i| coverage[i] > 0.05).count();
+    assert!(inked * 50 < existing.len(), "{inked} of {} existing pixels carry ink", existing.len());
+    let as_photo = existing.iter().filter(|&&i| same(&photo, i)).count();
+    assert!(as_photo * 10 > existing.len() * 9, "{as_photo} of {} existing pixels photorealistic", existing.len());
+    // `planned` (code 3) and the terrain keep the sketch: ink on them, as in the sketch frame,
+    // with the contours between the layers drawn.
+    for code in [1, 3] {
+        let pixels: Vec<usize> = layer_pixels(code).collect();
+        let inked = pixels.iter().filter(|&&i| coverage[i] > 0.3).count();
+        assert!(inked * 50 > pixels.len(), "layer code {code}: {inked} of {} pixels inked", pixels.len());
+        let as_sketch = pixels.iter().filter(|&&i| same(&sketch, i)).count();
+        assert!(as_sketch * 10 > pixels.len() * 9, "layer code {code}: {as_sketch} of {} as sketch", pixels.len());
+    }
+
+    // The terrain by its name; unknown layers are errors naming the known ones.
+    let mut terrain = FrameStyle::from(base.clone());
+    terrain.layers.insert(TERRAIN_LAYER.into(), Style { hatch_map: 1, ..base.clone() });
+    let crossed = renderer.render(&camera, &terrain, SIZE.0, SIZE.1).unwrap();
+    assert!(difference(&crossed, &sketch) > 0.01);
+    let mut unknown = FrameStyle::from(base);
+    unknown.layers.insert("meadow".into(), Style::default());
+    let err = renderer.render(&camera, &unknown, 32, 32).unwrap_err();
+    assert!(matches!(&err, RenderError::UnknownLayer { name, known } if name == "meadow" && known.contains("planned")));
+}
+
+#[test]
+fn bad_presets_and_values_are_errors_naming_them() {
+    let err = Style::from_preset(Some("winter"), &Default::default()).unwrap_err().to_string();
+    for name in ["winter", "photorealism", "van_gogh", "childrens_book"] {
+        assert!(err.contains(name), "{err}");
+    }
+    let overrides = serde_json::json!({"photorealism": 1.5});
+    let err = Style::from_preset(Some("full_npr"), overrides.as_object().unwrap()).unwrap_err().to_string();
+    assert!(err.contains("photorealism") && err.contains("0..=1"), "{err}");
+    let (scene, renderer) = sample();
+    let bad = Style { color_saturation: 3.0, ..Style::default() };
+    let err = renderer.render(&scene.default_camera, &bad, 32, 32).unwrap_err().to_string();
+    assert!(err.contains("color_saturation") && err.contains("0..=2"), "{err}");
+}
