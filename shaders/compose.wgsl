@@ -43,11 +43,16 @@ fn blurred_tone(p: vec2<i32>, size: vec2<u32>) -> f32 {
         return textureLoad(contour_tex, p, 0).g;
     }
     let sigma = max(post.tone2.y * 0.5, 0.5);
+    // The 2D Gaussian is separable: one exp per offset, weights multiplied per tap.
+    var g: array<f32, 9>;
+    for (var d = 0; d <= radius; d++) {
+        g[d] = exp(-f32(d * d) / (2.0 * sigma * sigma));
+    }
     var sum = 0.0;
     var weight = 0.0;
     for (var dy = -radius; dy <= radius; dy++) {
         for (var dx = -radius; dx <= radius; dx++) {
-            let w = exp(-f32(dx * dx + dy * dy) / (2.0 * sigma * sigma));
+            let w = g[abs(dx)] * g[abs(dy)];
             sum += w * textureLoad(contour_tex, clamp_coord(p + vec2<i32>(dx, dy), size), 0).g;
             weight += w;
         }
@@ -61,6 +66,9 @@ fn blurred_tone(p: vec2<i32>, size: vec2<u32>) -> f32 {
 // level follows the texture's tiles per pixel so strokes keep their width on screen. Returns
 // ink coverage 0..1.
 fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
+    if post.hatch.x <= 0.0 {
+        return 0.0;
+    }
     let levels = i32(post.tone2.z);
     let base = data_tam_layer(data_at(p), levels);
     let coords = textureLoad(hatch_tex, p, 0).xy;
@@ -88,7 +96,7 @@ fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
 fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     let e = textureLoad(hatch_tex, p, 0).zw;
     let support = i32(post.silhouette.x);
-    if support == 0 || dot(e, e) < 0.25 {
+    if support == 0 || post.silhouette.z <= 0.0 || dot(e, e) < 0.25 {
         return 0.0;
     }
     let ids = textureLoad(id_tex, p, 0).xy;
@@ -158,7 +166,10 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
         discard;
     }
     let size = textureDimensions(contour_tex);
-    var ink = contour_ink(p, size) * post.tone.w;
+    var ink = 0.0;
+    if post.tone.w > 0.0 {
+        ink = contour_ink(p, size) * post.tone.w;
+    }
     var base: vec3<f32>;
     if textureLoad(albedo_tex, p, 0).a > 0.5 {
         let t = data_tone(data_at(p), blurred_tone(p, size));

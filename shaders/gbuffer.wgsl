@@ -121,7 +121,9 @@ fn view_depth(world: vec3<f32>) -> f32 {
 
 @vertex
 fn vs_main(in: VertexIn) -> VertexOut {
-    let world = to_world(hlp_blend(in.position, in.hlp, layer_style(in.object_id).hlp.z), in);
+    // Leaves only: billboards (kind 3) already stand for their HLP sphere.
+    let abstraction = select(0.0, layer_style(in.object_id).hlp.z, u32(material.params.y) == 2u);
+    let world = to_world(hlp_blend(in.position, in.hlp, abstraction), in);
     var out: VertexOut;
     out.clip = frame.view_proj * vec4<f32>(world, 1.0);
     out.normal = rotate_z(in.normal, in.rotation);

@@ -149,6 +149,14 @@ async fn health_scene_metrics_and_openapi_describe_the_server() {
         assert!(text.contains(name), "metrics lack {name}:\n{text}");
     }
     assert!(text.contains(r#"route="/api/scene",method="GET",status="200""#), "{text}");
+
+    // The first frame of a renderer is always a sampled one: its passes reach the metrics.
+    let render = get(&server.url(&format!("/api/render?{VIEW}"))).await;
+    assert_eq!(render.status().as_u16(), 200);
+    for pass in ["cull", "geometry", "contour", "compose", "readback"] {
+        let count = metric(server, &format!("landsketch_render_pass_seconds_count{{pass=\"{pass}\"}}")).await;
+        assert!(count >= 1.0, "no {pass} timing in the metrics");
+    }
 }
 
 #[tokio::test]

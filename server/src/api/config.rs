@@ -22,6 +22,10 @@ pub struct ServerConfig {
     /// same scene skips preprocessing; default `<data-dir>/cache`.
     #[arg(long, env = "LANDSKETCH_CACHE_DIR")]
     pub cache_dir: Option<PathBuf>,
+    /// Time the passes of every n-th frame for `/metrics` (`landsketch_render_pass_seconds`);
+    /// a sampled frame waits for the GPU after each pass, so it is slightly slower. 0: never.
+    #[arg(long, env = "LANDSKETCH_PROFILE_EVERY", default_value_t = 10)]
+    pub profile_every: u32,
     /// Directory of the browser UI, served at `/` (index.html, ES modules, CSS).
     #[arg(long, env = "LANDSKETCH_WEB_DIR", default_value = "web")]
     pub web_dir: PathBuf,
@@ -79,7 +83,11 @@ impl ServerConfig {
     pub fn render_options(&self) -> std::io::Result<crate::render::RenderOptions> {
         let dir = self.cache_dir.clone().unwrap_or_else(|| self.data_dir.join("cache"));
         let cache = crate::prep::cache::DiskCache::open(dir)?;
-        Ok(crate::render::RenderOptions { cache: Some(std::sync::Arc::new(cache)), ..Default::default() })
+        Ok(crate::render::RenderOptions {
+            cache: Some(std::sync::Arc::new(cache)),
+            profile_every: self.profile_every,
+            ..Default::default()
+        })
     }
 
     /// Idle timeout of WebSocket sessions.

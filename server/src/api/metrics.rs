@@ -51,6 +51,8 @@ pub struct Metrics {
     pub render_seconds: HistogramFamily<KindLabels>,
     /// Time spent encoding a frame as PNG or JPEG.
     pub encode_seconds: Histogram,
+    /// Time of each render pass, from sampled frames (`--profile-every`).
+    pub pass_seconds: HistogramFamily<[(&'static str, &'static str); 1]>,
     /// Renders waiting for the renderer.
     pub queue_depth: Gauge,
     /// REST renders refused because the queue was full.
@@ -89,6 +91,7 @@ impl Metrics {
             http_seconds: Family::new_with_constructor(seconds_histogram),
             render_seconds: Family::new_with_constructor(seconds_histogram),
             encode_seconds: seconds_histogram(),
+            pass_seconds: Family::new_with_constructor(seconds_histogram),
             queue_depth: Gauge::default(),
             queue_rejected: Counter::default(),
             sessions: Gauge::default(),
@@ -105,6 +108,11 @@ impl Metrics {
         r.register("http_request_seconds", "HTTP request wall time by route", metrics.http_seconds.clone());
         r.register("render_seconds", "Renderer time per frame by kind", metrics.render_seconds.clone());
         r.register("encode_seconds", "PNG/JPEG encoding time per frame", metrics.encode_seconds.clone());
+        r.register(
+            "render_pass_seconds",
+            "Time per render pass (cull, geometry, prefilter, contour, data, compose, readback) of sampled frames",
+            metrics.pass_seconds.clone(),
+        );
         r.register("render_queue_depth", "Renders waiting for the renderer", metrics.queue_depth.clone());
         r.register("render_queue_rejected", "REST renders refused with 503", metrics.queue_rejected.clone());
         r.register("ws_sessions", "Open WebSocket sessions", metrics.sessions.clone());

@@ -309,6 +309,9 @@ fn work(shared: &Shared, renderer: &Renderer, store: &Store, runtime: &Handle) {
         let render_ms = elapsed.as_secs_f32() * 1e3;
         shared.last_render_ms.store(render_ms.ceil() as u32, Ordering::Relaxed);
         shared.metrics.render_seconds.get_or_create(&kind.label()).observe(elapsed.as_secs_f64());
+        for (pass, ms) in renderer.take_pass_times().unwrap_or_default() {
+            shared.metrics.pass_seconds.get_or_create(&[("pass", pass)]).observe(ms / 1e3);
+        }
         let metrics = shared.metrics.clone();
         runtime.spawn_blocking(move || {
             let result = match rendered {

@@ -1,7 +1,7 @@
 //! The frame loop: G-buffer pass, depth pre-filter, contour + tone pass, compose pass,
 //! read-back.
 
-use super::art_textures::ArtTextures;
+use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
 use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, render_target};
 use super::parametrization::ReferenceCoords;
 use super::post::{self, CONTOUR_FORMAT, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT};
@@ -30,6 +30,9 @@ pub struct Renderer {
     projection: ProjectionPass,
     scene: SceneGpu,
     lod: LodSettings,
+    profile_every: u32,
+    frames: std::sync::atomic::AtomicU32,
+    pass_times: std::sync::Mutex<Option<PassTimes>>,
     art: ArtTextures,
     sun: glam::Vec3,
     /// Names of the scene's vegetation layers, in layer-code order (per-layer styles).
@@ -64,6 +67,9 @@ pub struct RenderOptions {
     /// Disk cache of preprocessing results (HLPs, baked billboards); `None` keeps them in the
     /// process only.
     pub cache: Option<Arc<DiskCache>>,
+    /// Time the passes of every n-th frame of `render`/`render_with_data`/`render_view`
+    /// (available from [`Renderer::take_pass_times`]); 0 never does.
+    pub profile_every: u32,
 }
 
 /// A rendered frame with its linear depth (metres, row-major), for motion-compensated
@@ -98,6 +104,9 @@ impl Renderer {
             geometry,
             scene: scene_gpu,
             lod: options.lod,
+            profile_every: options.profile_every,
+            frames: Default::default(),
+            pass_times: Default::default(),
         })
     }
 
@@ -111,6 +120,23 @@ impl Renderer {
     /// (`Style::silhouette_map`).
     pub fn art_map_counts(&self) -> (usize, usize) {
         (self.art.tams.len(), self.art.sams.len())
+    }
+
+    /// The art maps in index order (CPU copies of what the passes sample).
+    pub fn art_maps(&self) -> &ArtMapSet {
+        &self.art.maps
+    }
+
+    /// Replaces art map `index` of the map's kind, or adds one when `index` is the count
+    /// (thesis 8.2.5: art maps painted at run time); the next frame draws with it. A TAM must
+    /// have the shape of the others (see [`ArtTextures::set`]); nothing changes when refused.
+    pub fn set_art_map(&mut self, index: usize, map: ArtMap) -> Result<(), RenderError> {
+        self.art.set(&self.gpu.device, &self.gpu.queue, index, map)
+    }
+
+    /// Removes the last art map of `kind` (`index` must name it; at least one stays).
+    pub fn remove_art_map(&mut self, kind: ArtKind, index: usize) -> Result<(), RenderError> {
+        self.art.remove(&self.gpu.device, &self.gpu.queue, kind, index)
     }
 
     /// Checks the size and every style of the frame; returns the resolved style of every slot.
@@ -215,7 +241,11 @@ impl Renderer {
         let slots = self.check(&style.into(), width, height)?;
         ProjectionPass::check(data)?;
         let references = self.scene.zero_references();
-        self.scoped(|| Ok(self.render_frame(camera, &slots, width, height, references, data, false, None)?.image))
+        self.scoped(|| {
+            self.sampled(|times| {
+                Ok(self.render_frame(camera, &slots, width, height, references, data, false, times)?.image)
+            })
+        })
     }
 
     /// [`Renderer::render`] timing every pass (see [`super::profile`]): slower than a plain
@@ -286,6 +316,29 @@ impl Renderer {
         self.scene.gpu_bytes() + per_pixel * u64::from(width) * u64::from(height)
     }
 
+    /// Runs `frame`, with pass timing when it is one of the sampled frames
+    /// ([`RenderOptions::profile_every`]); the times wait in [`Renderer::take_pass_times`].
+    fn sampled<T>(
+        &self,
+        frame: impl FnOnce(Option<&mut PassTimes>) -> Result<T, RenderError>,
+    ) -> Result<T, RenderError> {
+        let every = self.profile_every;
+        if every == 0 || !self.frames.fetch_add(1, std::sync::atomic::Ordering::Relaxed).is_multiple_of(every) {
+            return frame(None);
+        }
+        let mut times = PassTimes::new();
+        let result = frame(Some(&mut times));
+        if result.is_ok() {
+            *self.pass_times.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(times);
+        }
+        result
+    }
+
+    /// The pass times of the last sampled frame, if one was rendered since the last call.
+    pub fn take_pass_times(&self) -> Option<PassTimes> {
+        self.pass_times.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take()
+    }
+
     /// A fresh per-view state for [`Renderer::render_view`].
     pub fn new_view_state(&self) -> ViewState {
         let references = ReferenceCoords::new(self.scene.reference_centers().to_vec());
@@ -319,7 +372,11 @@ impl Renderer {
         if !state.references.as_slice().is_empty() {
             self.gpu.queue.write_buffer(&state.buffer, 0, bytemuck::cast_slice(state.references.as_slice()));
         }
-        self.scoped(|| self.render_frame(camera, &slots, width, height, &state.buffer, data, with_depth, None))
+        self.scoped(|| {
+            self.sampled(|times| {
+                self.render_frame(camera, &slots, width, height, &state.buffer, data, with_depth, times)
+            })
+        })
     }
 
     #[allow(clippy::too_many_arguments)]
