@@ -1,0 +1,459 @@
+// End-to-end tests of the browser UI (issue #8) in headless Chromium, driven by Playwright,
+// against a running landsketch server:
+//
+//   node tests/browser/e2e.mjs http://127.0.0.1:8080 [--screenshots docs/ui]
+//
+// `cargo test --test browser` starts a server and runs this. Chromium: /usr/bin/chromium or
+// $CHROMIUM. Every check asserts real behaviour (frames arrive, pixels change, the server's
+// messages are shown); there are no timed assertions, only generous waits against hangs.
+
+import assert from 'node:assert/strict';
+import { mkdtempSync, mkdirSync, readFileSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { dirname, join, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { chromium } from 'playwright-core';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const root = resolve(here, '../..');
+const args = process.argv.slice(2);
+const base = args[0];
+if (!base) {
+  console.error('usage: node tests/browser/e2e.mjs <base-url> [--screenshots DIR]');
+  process.exit(2);
+}
+const shotsAt = args.indexOf('--screenshots');
+const shots = shotsAt >= 0 ? resolve(args[shotsAt + 1]) : null;
+if (shots) mkdirSync(shots, { recursive: true });
+
+/** Longest wait for anything (a frame renders in about a second on lavapipe). */
+const WAIT = 120_000;
+/** Render scale of the viewer: small frames (rendering is on the CPU), full size for screenshots. */
+const RENDER_SCALE = shots ? 1 : 0.25;
+const SERIES = ['2024-06-01', '2024-06-11'].map((day) => ({
+  day,
+  path: join(root, `data/test/fields/series_${day}.tif`),
+}));
+
+const FLAGS = [
+  '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+  '--disable-background-networking', '--disable-component-update', '--disable-sync',
+];
+
+const profile = mkdtempSync(join(tmpdir(), 'landsketch-chromium-'));
+const context = await chromium.launchPersistentContext(profile, {
+  executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium',
+  args: FLAGS,
+  viewport: { width: 1280, height: 720 },
+  acceptDownloads: true,
+});
+await context.grantPermissions(['clipboard-read', 'clipboard-write'], { origin: base });
+await context.addInitScript((scale) => localStorage.setItem('landsketch.renderScale', scale), String(RENDER_SCALE));
+
+/** Console errors and page errors of every page, with the step they happened in. */
+const problems = [];
+/** Failed requests the tests cause on purpose: `[step, part of the URL or message]`. */
+const expected = [];
+let step = 'start';
+
+function watch(page) {
+  page.on('console', (message) => {
+    if (message.type() === 'error') problems.push({ step, text: message.text(), url: message.location().url });
+  });
+  page.on('pageerror', (error) => problems.push({ step, text: `page error: ${error.message}` }));
+  page.on('response', (response) => {
+    const status = response.status();
+    if (status >= 400) problems.push({ step, text: `HTTP ${status}`, url: response.url(), status });
+  });
+  return page;
+}
+
+async function check(name, body) {
+  step = name;
+  const started = Date.now();
+  await body();
+  console.log(`ok - ${name} (${((Date.now() - started) / 1000).toFixed(1)} s)`);
+}
+
+/** The id of the last frame drawn (0 before the first). */
+async function frameId(page) {
+  return Number((await page.locator('#frame').getAttribute('data-frame-id')) ?? 0);
+}
+
+/** Waits for a still frame newer than frame `after`; returns its camera. */
+async function nextStill(page, after) {
+  await page.waitForFunction((id) => {
+    const canvas = document.getElementById('frame');
+    return Number(canvas.dataset.frameId ?? 0) > id && canvas.dataset.still === 'true';
+  }, after, { timeout: WAIT });
+  return JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
+}
+
+/** Runs `action` and waits for the still frame it causes. */
+async function stillAfter(page, action) {
+  const before = await frameId(page);
+  await action();
+  return nextStill(page, before);
+}
+
+/** The shown frame as 64 × 48 grey levels, and its share of dark and light pixels. */
+async function pixels(page) {
+  return page.evaluate(() => {
+    const source = document.getElementById('frame');
+    const small = Object.assign(document.createElement('canvas'), { width: 64, height: 48 });
+    const g = small.getContext('2d');
+    g.drawImage(source, 0, 0, 64, 48);
+    const data = g.getImageData(0, 0, 64, 48).data;
+    const grey = [];
+    for (let i = 0; i < data.length; i += 4) grey.push((data[i] + data[i + 1] + data[i + 2]) / 3);
+    const full = source.getContext('2d').getImageData(0, 0, source.width, source.height).data;
+    let dark = 0;
+    let light = 0;
+    for (let i = 0; i < full.length; i += 4) {
+      const v = (full[i] + full[i + 1] + full[i + 2]) / 3;
+      if (v < 96) dark += 1;
+      if (v > 200) light += 1;
+    }
+    const n = full.length / 4;
+    return { grey, dark: dark / n, light: light / n, width: source.width, height: source.height };
+  });
+}
+
+/** Mean absolute grey-level difference of two frames (0…255). */
+function difference(a, b) {
+  return a.grey.reduce((sum, v, i) => sum + Math.abs(v - b.grey[i]), 0) / a.grey.length;
+}
+
+/** A visible change: the frames differ by more than JPEG noise. */
+const CHANGED = 1.0;
+
+/**
+ * Waits until the page's address (the view's link, updated a moment after each change) has a
+ * parameter `name` that `accept(value, arg)` accepts (it runs in the page: only its arguments
+ * are in scope); fails with the last value if it never does.
+ */
+async function linked(page, name, accept, arg = null) {
+  try {
+    await page.waitForFunction(
+      ([n, source, a]) => new Function('v', 'a', `return (${source})(v, a)`)(new URL(location.href).searchParams.get(n), a),
+      [name, accept.toString(), arg],
+      { timeout: WAIT },
+    );
+  } catch {
+    assert.fail(`the link's ${name} is ${new URL(page.url()).searchParams.get(name)}`);
+  }
+}
+
+async function openPane(page, name) {
+  await page.locator(`#tab-${name}`).click();
+  await page.locator(`#pane-${name}`).waitFor({ state: 'visible' });
+}
+
+async function shot(page, name) {
+  if (shots) await page.screenshot({ path: join(shots, `${name}.jpg`), type: 'jpeg', quality: 80 });
+}
+
+async function upload(page, { name, kind, time, file }) {
+  await openPane(page, 'upload');
+  await page.locator('#upload-file').setInputFiles(file);
+  await page.locator('#upload-name').fill(name);
+  await page.locator('#upload-kind').selectOption(kind);
+  await page.locator('#upload-time').fill(time ?? '');
+  await page.locator('#upload-submit').click();
+  const status = page.locator('#upload-status');
+  await page.waitForFunction(() => ['ok', 'error'].includes(document.getElementById('upload-status').dataset.kind), null, { timeout: WAIT });
+  return { kind: await status.getAttribute('data-kind'), text: await status.textContent() };
+}
+
+const page = watch(await context.newPage());
+/** The camera of the default view, and the camera the page shows now. */
+let initial;
+let camera;
+
+try {
+  await check('the page loads and shows frames', async () => {
+    await page.goto(base);
+    camera = await nextStill(page, 0);
+    initial = camera;
+    assert.equal(await page.locator('#connection').getAttribute('data-state'), 'open');
+    assert.match(await page.locator('#scene-name').textContent(), /\S/);
+    const p = await pixels(page);
+    const viewer = await page.locator('#viewer').evaluate((v) => v.clientWidth);
+    assert.ok(Math.abs(p.width - Math.round(viewer * RENDER_SCALE)) <= 1, `frames of ${RENDER_SCALE} × the viewer (${viewer} px), got ${p.width} × ${p.height}`);
+    assert.ok(p.dark > 0.005, `ink in the frame: ${(p.dark * 100).toFixed(2)} % dark`);
+    assert.ok(p.light > 0.2, `paper in the frame: ${(p.light * 100).toFixed(2)} % light`);
+    await page.waitForFunction(() => /fps/.test(document.getElementById('stats').textContent), null, { timeout: WAIT });
+    const link = await page.locator('#link').inputValue();
+    assert.match(link, /[?&]x=.*&yaw=/, `the view is in the link: ${link}`);
+    await shot(page, 'viewer');
+    const unlabelled = await page.locator('input, select, button, output').evaluateAll((controls) => controls
+      .filter((c) => c.getClientRects().length && !c.labels?.length && !c.getAttribute('aria-label') && !c.textContent.trim())
+      .map((c) => c.outerHTML));
+    assert.deepEqual(unlabelled, [], 'every visible control has a label');
+  });
+
+  await check('dragging changes the view', async () => {
+    const before = await pixels(page);
+    const box = await page.locator('#viewer').boundingBox();
+    const after = await stillAfter(page, async () => {
+      await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+      await page.mouse.down();
+      for (let i = 1; i <= 10; i += 1) await page.mouse.move(box.x + box.width / 2 + i * 15, box.y + box.height / 2 + i * 3);
+      await page.mouse.up();
+    });
+    assert.ok(Math.abs(after.yaw - camera.yaw) > 5, `yaw turned: ${camera.yaw} → ${after.yaw}`);
+    assert.ok(difference(before, await pixels(page)) > CHANGED, 'the picture changed');
+    camera = after;
+  });
+
+  await check('walking with the keyboard follows the terrain', async () => {
+    await page.locator('#viewer').focus();
+    const after = await stillAfter(page, async () => {
+      await page.keyboard.down('KeyW');
+      await page.waitForTimeout(800);
+      await page.keyboard.up('KeyW');
+    });
+    const moved = Math.hypot(after.position[0] - camera.position[0], after.position[1] - camera.position[1]);
+    assert.ok(moved > 0.5, `walked ${moved.toFixed(2)} m`);
+    await linked(page, 'eye_height', (v) => v === '1.7');
+    camera = after;
+  });
+
+  await check('flying climbs away from the terrain', async () => {
+    await page.locator('#fly').click();
+    assert.equal(await page.locator('#fly').getAttribute('aria-pressed'), 'true');
+    await page.locator('#viewer').focus();
+    const after = await stillAfter(page, async () => {
+      await page.keyboard.down('KeyE');
+      await page.waitForTimeout(800);
+      await page.keyboard.up('KeyE');
+    });
+    assert.ok(after.position[2] > camera.position[2] + 0.5, `climbed: z ${camera.position[2]} → ${after.position[2]}`);
+    await linked(page, 'z', (v) => v !== null);
+    const landed = await stillAfter(page, () => page.locator('#fly').click());
+    assert.ok(Math.abs(landed.position[2] - camera.position[2]) < 0.01, 'walking again at the eye height');
+    camera = landed;
+  });
+
+  await check('a style slider changes the image', async () => {
+    await openPane(page, 'style');
+    const before = await pixels(page);
+    const slider = page.locator('#style-photorealism');
+    await stillAfter(page, () => slider.fill('1'));
+    assert.ok(difference(before, await pixels(page)) > CHANGED, 'photorealism changed the picture');
+    await linked(page, 'style', (v) => v && JSON.parse(v).photorealism === 1);
+    await shot(page, 'style-photorealism');
+    await stillAfter(page, () => page.locator('#style-reset').click());
+    await linked(page, 'style', (v) => v === null);
+  });
+
+  await check('a preset switch changes the image', async () => {
+    const presets = await page.locator('#preset option').evaluateAll((options) => options.map((o) => o.value).filter(Boolean));
+    assert.ok(presets.length > 1, `presets offered: ${presets}`);
+    const before = await pixels(page);
+    const name = presets.includes('van_gogh') ? 'van_gogh' : presets[0];
+    await stillAfter(page, () => page.locator('#preset').selectOption(name));
+    assert.ok(difference(before, await pixels(page)) > CHANGED, `preset ${name} changed the picture`);
+    await linked(page, 'preset', (v, a) => v === a, name);
+    await shot(page, `preset-${name}`);
+    await stillAfter(page, () => page.locator('#preset').selectOption(''));
+  });
+
+  await check('a vegetation layer gets a style of its own', async () => {
+    const before = await pixels(page);
+    await page.locator('#style-target').selectOption('existing');
+    await stillAfter(page, () => page.locator('#preset').selectOption('photorealism'));
+    assert.ok(difference(before, await pixels(page)) > CHANGED, 'the existing plants changed');
+    await linked(page, 'layer_styles', (v) => v === JSON.stringify({ existing: { preset: 'photorealism' } }));
+    await stillAfter(page, () => page.locator('#style-reset').click());
+    await linked(page, 'layer_styles', (v) => v === null);
+    await page.locator('#style-target').selectOption('');
+  });
+
+  await check('an invalid upload shows the server\'s message', async () => {
+    const result = await upload(page, {
+      name: 'Not a raster',
+      kind: 'scalar',
+      file: { name: 'notes.txt', mimeType: 'text/plain', buffer: Buffer.from('this is not a raster\n') },
+    });
+    expected.push([step, '/api/layers']);
+    assert.equal(result.kind, 'error');
+    assert.match(result.text, /unknown format: expected GeoTIFF/, `the server's message: ${result.text}`);
+    await shot(page, 'upload-error');
+  });
+
+  let layerId;
+  await check('uploading a sample raster adds a layer whose legend appears', async () => {
+    for (const { day, path } of SERIES) {
+      const result = await upload(page, { name: 'Test series', kind: 'scalar', time: day, file: path });
+      assert.equal(result.kind, 'ok', result.text);
+    }
+    await openPane(page, 'data');
+    const item = page.locator('li.layer', { hasText: 'Test series' });
+    await item.waitFor({ timeout: WAIT });
+    layerId = await item.getAttribute('data-layer');
+    assert.match(await item.locator('.meta').textContent(), /2 time steps/);
+    const legend = item.locator('img.legend');
+    await page.waitForFunction((img) => img.complete && img.naturalWidth > 0, await legend.elementHandle(), { timeout: WAIT });
+    assert.equal(await legend.evaluate((img) => img.naturalWidth), 320);
+    assert.match(await legend.getAttribute('alt'), /Legend of Test series/);
+  });
+
+  await check('mapping a layer shows it in the frame, the time slider changes the frame', async () => {
+    // A link into the layer's part of the scene (the west), looking down at the ground.
+    await page.goto(`${base}/?x=-800&y=0&eye_height=1.7&yaw=90&pitch=-40&fov=60`);
+    const opened = await nextStill(page, 0);
+    assert.ok(Math.abs(opened.position[0] + 800) < 0.01 && Math.abs(opened.yaw - 90) < 0.01, `the link's view: ${JSON.stringify(opened)}`);
+    await openPane(page, 'data');
+    const target = page.locator(`#map-${layerId}-target`);
+    const before = await pixels(page);
+    await stillAfter(page, () => target.selectOption('color'));
+    const mapped = await pixels(page);
+    assert.ok(difference(before, mapped) > CHANGED, 'the colour mapping changed the picture');
+    await linked(page, 'mappings', (v, a) => v && JSON.parse(v)[0].layer === a, layerId);
+    const slider = page.locator('#time-slider');
+    await slider.waitFor({ state: 'visible' });
+    const label = await page.locator('#time-label').textContent();
+    const last = await slider.getAttribute('max');
+    await stillAfter(page, () => slider.fill(last));
+    assert.notEqual(await page.locator('#time-label').textContent(), label, 'the time stamp moved');
+    await linked(page, 'time', (v) => /^2024-06-11/.test(v));
+    assert.ok(difference(mapped, await pixels(page)) > CHANGED, 'the later time step changed the picture');
+    await shot(page, 'data-mapping');
+    const shown = await page.locator('#time-label').textContent();
+    await page.locator('#time-play').click();
+    await page.waitForFunction((text) => document.getElementById('time-label').textContent !== text, shown, { timeout: WAIT });
+    await page.locator('#time-play').click();
+    assert.equal(await page.locator('#time-play').getAttribute('aria-pressed'), 'false', 'paused');
+  });
+
+  await check('copy link → open → same camera; the link renders the same picture over REST', async () => {
+    await page.locator('#copy-link').click();
+    await page.waitForFunction(() => /copied|selected/.test(document.getElementById('message').textContent));
+    const link = await page.locator('#link').inputValue();
+    const copied = await page.evaluate(() => navigator.clipboard.readText());
+    assert.equal(copied, link, 'the clipboard holds the link');
+    const shown = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
+    const other = watch(await context.newPage());
+    await other.goto(link);
+    const opened = await nextStill(other, 0);
+    for (let i = 0; i < 3; i += 1) {
+      assert.ok(Math.abs(opened.position[i] - shown.position[i]) < 0.01, `position ${i}: ${shown.position} vs ${opened.position}`);
+    }
+    for (const k of ['yaw', 'pitch', 'fov']) assert.ok(Math.abs(opened[k] - shown[k]) < 0.01, `${k}: ${shown[k]} vs ${opened[k]}`);
+    // The link's query on the render endpoint, at the session's frame size.
+    const query = new URL(link).search.slice(1);
+    const rest = await other.evaluate(async (q) => {
+      const canvas = document.getElementById('frame');
+      const url = `/api/render?${q}&width=${canvas.width}&height=${canvas.height}&format=png`;
+      const image = await createImageBitmap(await (await fetch(url)).blob());
+      const small = Object.assign(document.createElement('canvas'), { width: 64, height: 48 });
+      const g = small.getContext('2d');
+      g.drawImage(image, 0, 0, 64, 48);
+      const data = g.getImageData(0, 0, 64, 48).data;
+      const grey = [];
+      for (let i = 0; i < data.length; i += 4) grey.push((data[i] + data[i + 1] + data[i + 2]) / 3);
+      return { grey };
+    }, query);
+    const session = await pixels(other);
+    assert.ok(difference(session, rest) < 4, `the session and GET /api/render show the same picture (${difference(session, rest).toFixed(2)})`);
+    await other.close();
+  });
+
+  await check('the screenshot is a full-quality PNG of the same view', async () => {
+    const [download] = await Promise.all([page.waitForEvent('download', { timeout: WAIT }), page.locator('#screenshot').click()]);
+    const file = await download.path();
+    const bytes = readFileSync(file);
+    assert.deepEqual([...bytes.subarray(0, 8)], [0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a], 'a PNG');
+    const width = bytes.readUInt32BE(16);
+    const viewer = await page.locator('#viewer').boundingBox();
+    assert.ok(Math.abs(width - Math.round(viewer.width)) <= 2, `full viewer width ${viewer.width}, got ${width}`);
+  });
+
+  await check('deleting a layer asks first', async () => {
+    await openPane(page, 'data');
+    const item = page.locator(`li.layer[data-layer="${layerId}"]`);
+    await item.locator('button.danger').click();
+    await page.locator('#confirm').waitFor({ state: 'visible' });
+    await page.locator('#confirm button[value="cancel"]').click();
+    assert.equal(await item.count(), 1, 'cancel keeps the layer');
+    await item.locator('button.danger').click();
+    await page.locator('#confirm-ok').click();
+    await item.waitFor({ state: 'detached', timeout: WAIT });
+    await linked(page, 'mappings', (v) => v === null);
+    await linked(page, 'time', (v) => v === null);
+  });
+
+  await check('plan view', async () => {
+    const before = await pixels(page);
+    await stillAfter(page, () => page.locator('#plan').click());
+    await linked(page, 'mode', (v) => v === 'plan');
+    assert.ok(difference(before, await pixels(page)) > CHANGED, 'the plan differs from the perspective view');
+    await shot(page, 'plan');
+    await stillAfter(page, () => page.locator('#plan').click());
+    await linked(page, 'mode', (v) => v === null);
+  });
+
+  await check('a dropped session reconnects with back-off and keeps the view', async () => {
+    const other = watch(await context.newPage());
+    const sessions = [];
+    // The page's side of each session, connected through to the server.
+    await other.routeWebSocket(/\/api\/ws/, (ws) => {
+      ws.connectToServer();
+      sessions.push(ws);
+    });
+    await other.goto(base);
+    await nextStill(other, 0);
+    const first = await other.locator('#frame').getAttribute('data-session');
+    const turned = await stillAfter(other, async () => {
+      await other.locator('#viewer').focus();
+      await other.keyboard.down('ArrowLeft');
+      await other.waitForTimeout(500);
+      await other.keyboard.up('ArrowLeft');
+    });
+    sessions[0].close({ code: 1001, reason: 'dropped by the test' });
+    await other.waitForFunction(() => document.getElementById('connection').dataset.state === 'waiting', null, { timeout: WAIT });
+    assert.match(await other.locator('#connection').textContent(), /retrying in \d+ s/);
+    await other.waitForFunction((old) => {
+      const canvas = document.getElementById('frame');
+      return canvas.dataset.session !== old && canvas.dataset.still === 'true' && Number(canvas.dataset.frameId) >= 1;
+    }, first, { timeout: WAIT });
+    assert.equal(await other.locator('#connection').getAttribute('data-state'), 'open');
+    assert.equal(sessions.length, 2, 'one new session');
+    const again = JSON.parse(await other.locator('#frame').getAttribute('data-camera'));
+    assert.ok(Math.abs(again.yaw - turned.yaw) < 0.01, `the view survived: yaw ${turned.yaw} → ${again.yaw}`);
+    await other.close();
+  });
+
+  await check('a link the server refuses falls back to the default view with the reason', async () => {
+    const other = watch(await context.newPage());
+    // The session and the probe render are refused with 422.
+    expected.push([step, '/api/ws?x=5000'], [step, '/api/render?x=5000']);
+    await other.goto(`${base}/?x=5000&y=0&eye_height=1.7&yaw=10&pitch=0&fov=60`);
+    const shown = await nextStill(other, 0);
+    assert.match(await other.locator('#message').textContent(), /refused \(position 5000,0 is outside the terrain/);
+    assert.deepEqual(shown.position.slice(0, 2), initial.position.slice(0, 2), 'the default view');
+    await linked(other, 'x', (v) => v !== '5000');
+    await other.close();
+  });
+
+  await check('a phone-sized viewport', async () => {
+    const phone = watch(await context.newPage());
+    await phone.setViewportSize({ width: 390, height: 844 });
+    await phone.goto(base);
+    await nextStill(phone, 0);
+    const overflow = await phone.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+    assert.ok(overflow <= 0, `no sideways scrolling (${overflow} px too wide)`);
+    for (const id of ['#fly', '#screenshot', '#copy-link', '#tab-style']) assert.ok(await phone.locator(id).isVisible(), `${id} visible`);
+    if (shots) await phone.screenshot({ path: join(shots, 'phone.jpg'), type: 'jpeg', quality: 80 });
+    await phone.close();
+  });
+
+  await check('no console errors', async () => {
+    const unexpected = problems.filter((p) => !expected.some(([s, part]) => p.step === s && (p.url?.includes(part) || p.text.includes(part))));
+    assert.deepEqual(unexpected, [], 'console errors');
+  });
+} finally {
+  await context.close();
+  rmSync(profile, { recursive: true, force: true });
+}

@@ -1,0 +1,50 @@
+// REST helpers: JSON requests and the server's error bodies
+// (`{"error": {"code", "message", "parameter"}}`, README "Server" → "Errors").
+
+/** An error answered by the server, with its code, message and the parameter it names. */
+export class ApiError extends Error {
+  constructor(status, code, message, parameter) {
+    super(message);
+    this.name = 'ApiError';
+    this.status = status;
+    this.code = code;
+    this.parameter = parameter ?? null;
+  }
+}
+
+/** Reads the error of a failed response: the JSON error body, or the status text. */
+export async function errorOf(response) {
+  let detail = null;
+  try {
+    detail = (await response.json()).error;
+  } catch {
+    // Not JSON (a proxy's error page): fall back to the status line.
+  }
+  const message = detail?.message ?? `${response.status} ${response.statusText}`.trim();
+  return new ApiError(response.status, detail?.code ?? 'http', message, detail?.parameter);
+}
+
+/** Fetches `path` and returns its JSON; throws an `ApiError` for an error status. */
+export async function getJSON(path, init) {
+  const response = await fetch(path, init);
+  if (!response.ok) throw await errorOf(response);
+  return response.json();
+}
+
+/** Fetches `path` and returns the response as a Blob; throws an `ApiError` for an error status. */
+export async function getBlob(path) {
+  const response = await fetch(path);
+  if (!response.ok) throw await errorOf(response);
+  return response.blob();
+}
+
+/** Uploads a data layer as a multipart form (`POST /api/layers`); returns the layer's metadata. */
+export async function uploadLayer(form) {
+  return getJSON('/api/layers', { method: 'POST', body: form });
+}
+
+/** Deletes a data layer (`DELETE /api/layers/{id}`). */
+export async function deleteLayer(id) {
+  const response = await fetch(`/api/layers/${encodeURIComponent(id)}`, { method: 'DELETE' });
+  if (!response.ok) throw await errorOf(response);
+}

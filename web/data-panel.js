@@ -1,0 +1,213 @@
+// The data panel: the stored layers (`GET /api/layers`) with their legends
+// (`/api/layers/{id}/legend.png`, drawn with the layer's mapping), a mapping choice per layer
+// (target, colour map, range), the server's suitability warnings (thesis Table 9.1), a delete
+// button, and the time slider with play/pause and speed.
+
+/** Sub-steps of the time slider between two time steps of the data. */
+const SUBSTEPS = 8;
+
+/** Formats an RFC 3339 time without fractions: `2024-06-01 00:00 UTC`. */
+export function formatTime(iso) {
+  const date = new Date(iso);
+  if (Number.isNaN(date.getTime())) return iso;
+  return `${date.toISOString().slice(0, 16).replace('T', ' ')} UTC`;
+}
+
+/** The time at slider position `position` over the sorted `times` (ms), interpolated between steps. */
+export function timeAt(times, position) {
+  const i = Math.min(times.length - 1, Math.floor(position / SUBSTEPS));
+  const u = position / SUBSTEPS - i;
+  const t = i + 1 < times.length ? times[i] + (times[i + 1] - times[i]) * u : times[i];
+  return new Date(t).toISOString().replace('.000Z', 'Z');
+}
+
+/** The slider position of `iso` over `times` (ms): the nearest sub-step. */
+function positionOf(times, iso) {
+  const t = Date.parse(iso);
+  if (Number.isNaN(t) || times.length < 2) return 0;
+  for (let i = 0; i + 1 < times.length; i += 1) {
+    if (t <= times[i + 1]) return Math.round((i + Math.max(0, (t - times[i]) / (times[i + 1] - times[i]))) * SUBSTEPS);
+  }
+  return (times.length - 1) * SUBSTEPS;
+}
+
+function element(tag, props = {}, ...children) {
+  const node = Object.assign(document.createElement(tag), props);
+  node.append(...children);
+  return node;
+}
+
+/** The legend query of a mapping (colour map, range, reverse, opacity). */
+export function legendQuery(mapping) {
+  const query = new URLSearchParams();
+  if (mapping?.colormap) query.set('colormap', mapping.colormap);
+  if (mapping?.range) query.set('range', mapping.range.join(','));
+  if (mapping?.reverse) query.set('reverse', 'true');
+  return query.toString();
+}
+
+export class DataPanel {
+  /**
+   * `options`: `targets` (mapping targets, empty when the server cannot map data),
+   * `colormaps` (names), `timeSupported`, `onMappings(mappings)`, `onTime(iso)`,
+   * `onDelete(layer)`.
+   */
+  constructor(options) {
+    this.options = options;
+    this.layers = [];
+    this.mappings = [];
+    this.time = null;
+    this.playing = null;
+    this.list = document.getElementById('layers');
+    this.empty = document.getElementById('layers-empty');
+    this.warnings = document.getElementById('mapping-warnings');
+    this.slider = document.getElementById('time-slider');
+    this.timeLabel = document.getElementById('time-label');
+    this.play = document.getElementById('time-play');
+    this.speed = document.getElementById('time-speed');
+    this.slider.addEventListener('input', () => this.setPosition(Number(this.slider.value)));
+    this.play.addEventListener('click', () => (this.playing ? this.pause() : this.start()));
+  }
+
+  /** Shows `layers` (the API's metadata) with the mappings `mappings` and time `time`. */
+  show(layers, mappings, time) {
+    this.layers = layers;
+    const ids = new Set(layers.map((l) => l.id));
+    this.mappings = mappings.filter((m) => ids.has(m.layer));
+    this.time = time;
+    this.list.replaceChildren(...layers.map((layer) => this.item(layer)));
+    this.empty.hidden = layers.length > 0;
+    this.updateTime();
+  }
+
+  mappingOf(id) {
+    return this.mappings.find((m) => m.layer === id) ?? null;
+  }
+
+  item(layer) {
+    const id = `layer-${layer.id}`;
+    const mapping = this.mappingOf(layer.id);
+    const li = element('li', { className: 'layer', id });
+    li.dataset.layer = layer.id;
+    const steps = layer.steps.filter((s) => s.time);
+    const range = layer.kind === 'label'
+      ? `${layer.classes.length} classes`
+      : `${layer.min.toPrecision(4)} … ${layer.max.toPrecision(4)}${layer.units ? ` ${layer.units}` : ''}`;
+    const when = steps.length ? ` · ${steps.length} time step${steps.length > 1 ? 's' : ''}` : '';
+    li.append(
+      element('h3', { textContent: layer.name }),
+      element('p', { className: 'meta', textContent: `${layer.kind} · ${range}${when} · ${layer.crs} · ${layer.source}` }),
+    );
+    if (this.options.targets.length) li.append(this.mappingControls(layer, mapping));
+    const legend = element('img', {
+      className: 'legend',
+      alt: `Legend of ${layer.name}${layer.units ? ` in ${layer.units}` : ''}`,
+      src: `/api/layers/${encodeURIComponent(layer.id)}/legend.png?${legendQuery(mapping)}`,
+      width: 320,
+    });
+    li.append(legend, element('p', { className: 'units', textContent: `Units: ${layer.units ?? 'none given'}` }));
+    const remove = element('button', { type: 'button', className: 'danger small', textContent: 'Delete…' });
+    remove.setAttribute('aria-label', `Delete layer ${layer.name}`);
+    remove.addEventListener('click', () => this.options.onDelete(layer));
+    li.append(remove);
+    return li;
+  }
+
+  mappingControls(layer, mapping) {
+    const base = `map-${layer.id}`;
+    const box = element('div', { className: 'mapping' });
+    const target = element('select', { id: `${base}-target` });
+    target.append(new Option('not shown', ''));
+    for (const t of this.options.targets) target.append(new Option(t.replaceAll('_', ' '), t));
+    target.value = mapping?.target ?? '';
+    const colormap = element('select', { id: `${base}-colormap` });
+    colormap.append(new Option('default', ''));
+    for (const c of this.options.colormaps) colormap.append(new Option(c, c));
+    colormap.value = mapping?.colormap ?? '';
+    const lo = element('input', { type: 'number', id: `${base}-min`, step: 'any', value: mapping?.range?.[0] ?? layer.min });
+    const hi = element('input', { type: 'number', id: `${base}-max`, step: 'any', value: mapping?.range?.[1] ?? layer.max });
+    const reverse = element('input', { type: 'checkbox', id: `${base}-reverse`, checked: Boolean(mapping?.reverse) });
+    const field = (label, control) => element('div', { className: 'field' }, element('label', { htmlFor: control.id, textContent: label }), control);
+    const rangeRow = element('div', { className: 'row' },
+      element('label', { htmlFor: lo.id, textContent: 'Range' }), lo,
+      element('label', { htmlFor: hi.id, textContent: 'to' }), hi);
+    const reverseRow = element('label', { className: 'check' }, reverse, 'Reverse');
+    box.append(field('Show as', target), field('Colour map', colormap), rangeRow, reverseRow);
+    const changed = () => {
+      const others = this.mappings.filter((m) => m.layer !== layer.id);
+      if (target.value) {
+        const m = { layer: layer.id, target: target.value };
+        if (colormap.value) m.colormap = colormap.value;
+        const ends = [Number(lo.value), Number(hi.value)];
+        if (ends.every(Number.isFinite) && ends[0] !== ends[1] && (ends[0] !== layer.min || ends[1] !== layer.max)) m.range = ends;
+        if (reverse.checked) m.reverse = true;
+        others.push(m);
+      }
+      this.mappings = others;
+      const img = box.parentElement?.querySelector('img.legend');
+      if (img) img.src = `/api/layers/${encodeURIComponent(layer.id)}/legend.png?${legendQuery(this.mappingOf(layer.id))}`;
+      this.updateTime();
+      this.options.onMappings(this.mappings);
+    };
+    for (const control of [target, colormap, reverse]) control.addEventListener('change', changed);
+    for (const control of [lo, hi]) control.addEventListener('change', changed);
+    return box;
+  }
+
+  /** Shows the server's warnings about the mappings (Table 9.1) and the time (clamped). */
+  showWarnings(warnings) {
+    this.warnings.replaceChildren(...warnings.map((text) => element('p', { className: 'warning', textContent: `⚠ ${text}` })));
+  }
+
+  /** The sorted time steps (ms) of the mapped layers. */
+  times() {
+    const mapped = new Set(this.mappings.map((m) => m.layer));
+    const all = this.layers.filter((l) => mapped.has(l.id)).flatMap((l) => l.steps.map((s) => s.time).filter(Boolean));
+    return [...new Set(all.map((t) => Date.parse(t)))].filter(Number.isFinite).sort((a, b) => a - b);
+  }
+
+  updateTime() {
+    const times = this.times();
+    const box = document.getElementById('time');
+    box.hidden = times.length < 2 || !this.options.timeSupported;
+    if (box.hidden) {
+      this.pause();
+      return;
+    }
+    this.slider.max = String((times.length - 1) * SUBSTEPS);
+    const position = this.time ? positionOf(times, this.time) : 0;
+    this.slider.value = String(position);
+    this.timeLabel.textContent = formatTime(timeAt(times, position));
+    this.slider.setAttribute('aria-valuetext', this.timeLabel.textContent);
+  }
+
+  /** Moves the time slider to `position` and reports the time. */
+  setPosition(position) {
+    const times = this.times();
+    if (times.length < 2) return;
+    this.slider.value = String(position);
+    this.time = timeAt(times, position);
+    this.timeLabel.textContent = formatTime(this.time);
+    this.slider.setAttribute('aria-valuetext', this.timeLabel.textContent);
+    this.options.onTime(this.time);
+  }
+
+  start() {
+    this.play.textContent = 'Pause';
+    this.play.setAttribute('aria-pressed', 'true');
+    const tick = () => {
+      const max = Number(this.slider.max);
+      const next = Number(this.slider.value) + 1;
+      this.setPosition(next > max ? 0 : next);
+      this.playing = setTimeout(tick, 1000 / (Number(this.speed.value) * SUBSTEPS));
+    };
+    this.playing = setTimeout(tick, 0);
+  }
+
+  pause() {
+    clearTimeout(this.playing);
+    this.playing = null;
+    this.play.textContent = 'Play';
+    this.play.setAttribute('aria-pressed', 'false');
+  }
+}
