@@ -22,7 +22,7 @@ fn forced(level: LodLevel) -> RenderOptions {
 /// Looking north at the tree at the origin from `distance` metres, aimed at its crown.
 fn camera_at(distance: f32) -> Camera {
     let pitch = (5.0f32 / distance).atan().to_degrees();
-    Camera { position: [0.0, -distance, 101.7], yaw: 0.0, pitch, fov: 40.0, roll: 0.0, projection: Default::default() }
+    Camera::perspective([0.0, -distance, 101.7], 0.0, pitch, 40.0)
 }
 
 /// The pixels showing a plant (object IDs with a vegetation layer code).
@@ -75,14 +75,7 @@ fn instance_culling_removes_what_is_outside_the_frustum() {
     let positions: Vec<[f32; 2]> = ahead.iter().chain(&outside).copied().collect();
     let scene = trees_on_a_plain(&positions);
     let renderer = Renderer::new(gpu(), &scene).unwrap();
-    let camera = Camera {
-        position: [0.0, -30.0, 103.0],
-        yaw: 0.0,
-        pitch: 0.0,
-        fov: 60.0,
-        roll: 0.0,
-        projection: Default::default(),
-    };
+    let camera = scene.default_camera;
     let stats = renderer.draw_stats(&camera, 320, 240);
     assert_eq!(stats.plants, 10);
     assert_eq!(stats.plants_drawn, 5, "{stats:?}");
@@ -102,14 +95,7 @@ fn levels_are_chosen_by_distance_and_cut_the_triangles() {
     let positions: Vec<[f32; 2]> = (0..40).map(|i| [(i % 5) as f32 * 8.0 - 16.0, -20.0 + i as f32 * 3.0]).collect();
     let scene = trees_on_a_plain(&positions);
     let renderer = Renderer::new(gpu(), &scene).unwrap();
-    let camera = Camera {
-        position: [0.0, -30.0, 103.0],
-        yaw: 0.0,
-        pitch: 0.0,
-        fov: 60.0,
-        roll: 0.0,
-        projection: Default::default(),
-    };
+    let camera = scene.default_camera;
     let stats = renderer.draw_stats(&camera, 512, 384);
     assert!(stats.per_level.iter().all(|&n| n > 0), "near, middle and far trees: {stats:?}");
     assert!(stats.triangles < stats.source_triangles / 2, "{stats:?}");

@@ -26,14 +26,7 @@ fn full_detail(scene: &Scene) -> Renderer {
 fn close_up() -> (Renderer, Camera) {
     let scene = trees_on_a_plain(&[[0.0, 0.0]]);
     let renderer = full_detail(&scene);
-    let camera = Camera {
-        position: [0.0, -16.0, 105.5],
-        yaw: 0.0,
-        pitch: 8.0,
-        fov: 50.0,
-        roll: 0.0,
-        projection: Default::default(),
-    };
+    let camera = Camera::perspective([0.0, -16.0, 105.5], 0.0, 8.0, 50.0);
     (renderer, camera)
 }
 

@@ -52,14 +52,7 @@ pub fn trees_on_a_plain(positions: &[[f32; 2]]) -> Scene {
         species: vec![Species::new("oak", procedural_plant(ProceduralKind::Broadleaf, 1))],
         layers: vec![VegetationLayer { name: "test".into(), plants }],
         sun: Sun { azimuth: 0.0, elevation: 90.0 },
-        default_camera: Camera {
-            position: [0.0, -30.0, 105.0],
-            yaw: 0.0,
-            pitch: 0.0,
-            fov: 60.0,
-            roll: 0.0,
-            projection: Default::default(),
-        },
+        default_camera: Camera::perspective([0.0, -30.0, 105.0], 0.0, 0.0, 60.0),
     }
 }
 

@@ -2,7 +2,7 @@
 //! plane drawn offscreen with an orthographic camera (`shaders/bake.wgsl`), read back so it can
 //! be cached on disk and uploaded with a mip chain like any material texture.
 
-use super::gbuffer::{DEPTH_FORMAT, Vertex};
+use super::gbuffer::{DEPTH_FORMAT, Vertex, storage_entry};
 use super::{Gpu, RenderError, readback};
 use crate::prep::lod::Atlas;
 use std::ops::Range;
@@ -42,16 +42,7 @@ impl Baker {
         });
         let tiles_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("bake tiles"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only: true },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[storage_entry(0, wgpu::ShaderStages::VERTEX)],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("bake"),

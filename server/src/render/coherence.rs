@@ -140,14 +140,7 @@ mod tests {
 
     #[test]
     fn unproject_inverts_project() {
-        let cam = Camera {
-            position: [3.0, -4.0, 12.0],
-            yaw: 30.0,
-            pitch: -5.0,
-            fov: 50.0,
-            roll: 7.0,
-            projection: Default::default(),
-        };
+        let cam = Camera { roll: 7.0, ..Camera::perspective([3.0, -4.0, 12.0], 30.0, -5.0, 50.0) };
         let p = unproject(&cam, 100.0, 40.0, 25.0, 320, 240);
         let (x, y, d) = project(&cam, p, 320, 240).unwrap();
         assert!((x - 100.0).abs() < 1e-2 && (y - 40.0).abs() < 1e-2 && (d - 25.0).abs() < 1e-3, "{x} {y} {d}");
@@ -155,14 +148,7 @@ mod tests {
 
     #[test]
     fn path_is_smooth_and_ends_rolled() {
-        let start = Camera {
-            position: [0.0, 0.0, 2.0],
-            yaw: 0.0,
-            pitch: 0.0,
-            fov: 60.0,
-            roll: 0.0,
-            projection: Default::default(),
-        };
+        let start = Camera::perspective([0.0, 0.0, 2.0], 0.0, 0.0, 60.0);
         let path = camera_path(&start, 5);
         assert_eq!(path.len(), 21);
         assert!((path[20].roll - 12.0).abs() < 1e-4);

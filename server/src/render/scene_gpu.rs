@@ -606,14 +606,7 @@ mod tests {
 
     #[test]
     fn frustum_planes_contain_what_the_camera_sees() {
-        let camera = Camera {
-            position: [0.0, 0.0, 2.0],
-            yaw: 0.0,
-            pitch: 0.0,
-            fov: 60.0,
-            roll: 0.0,
-            projection: Default::default(),
-        };
+        let camera = Camera::perspective([0.0, 0.0, 2.0], 0.0, 0.0, 60.0);
         let planes = frustum_planes(camera.projection(1.0) * camera.view());
         let inside = |p: Vec3, r: f32| planes.iter().all(|q| q.truncate().dot(p) + q.w >= -r);
         assert!(inside(Vec3::new(0.0, 50.0, 2.0), 0.0), "straight ahead");

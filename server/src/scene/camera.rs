@@ -54,6 +54,12 @@ pub struct Camera {
 pub const NEAR_PLANE: f32 = 0.25;
 
 impl Camera {
+    /// A perspective camera at `position` with heading `yaw`, `pitch` and vertical field of
+    /// view `fov` (degrees), not rolled.
+    pub fn perspective(position: [f32; 3], yaw: f32, pitch: f32, fov: f32) -> Camera {
+        Camera { position, yaw, pitch, fov, roll: 0.0, projection: Projection::Perspective }
+    }
+
     /// A plan view centred on (`x`, `y`), `width` metres across, looking down from height `z`,
     /// north up.
     pub fn plan(x: f32, y: f32, z: f32, width: f32) -> Camera {
@@ -155,14 +161,7 @@ mod tests {
 
     #[test]
     fn heading_follows_the_compass() {
-        let mut cam = Camera {
-            position: [0.0; 3],
-            yaw: 0.0,
-            pitch: 0.0,
-            fov: 60.0,
-            roll: 0.0,
-            projection: Projection::Perspective,
-        };
+        let mut cam = Camera::perspective([0.0; 3], 0.0, 0.0, 60.0);
         assert!((cam.forward() - Vec3::Y).length() < 1e-6);
         cam.yaw = 90.0;
         assert!((cam.forward() - Vec3::X).length() < 1e-6);
@@ -172,14 +171,7 @@ mod tests {
 
     #[test]
     fn point_ahead_projects_to_the_centre_with_reverse_depth() {
-        let cam = Camera {
-            position: [10.0, 20.0, 2.0],
-            yaw: 90.0,
-            pitch: 0.0,
-            fov: 60.0,
-            roll: 0.0,
-            projection: Projection::Perspective,
-        };
+        let cam = Camera::perspective([10.0, 20.0, 2.0], 90.0, 0.0, 60.0);
         let clip = cam.projection(1.5) * cam.view() * glam::Vec4::new(110.0, 20.0, 2.0, 1.0);
         let ndc = clip.truncate() / clip.w;
         assert!(ndc.x.abs() < 1e-5 && ndc.y.abs() < 1e-5);
@@ -211,14 +203,7 @@ mod tests {
 
     #[test]
     fn perspective_unproject_inverts_the_projection() {
-        let cam = Camera {
-            position: [10.0, 20.0, 2.0],
-            yaw: 30.0,
-            pitch: -10.0,
-            fov: 60.0,
-            roll: 5.0,
-            projection: Projection::Perspective,
-        };
+        let cam = Camera { roll: 5.0, ..Camera::perspective([10.0, 20.0, 2.0], 30.0, -10.0, 60.0) };
         let p = Vec3::new(40.0, 70.0, -3.0);
         let clip = cam.projection(1.5) * cam.view() * p.extend(1.0);
         let depth = -(cam.view() * p.extend(1.0)).z;
@@ -228,14 +213,7 @@ mod tests {
 
     #[test]
     fn positive_roll_turns_the_picture_counter_clockwise() {
-        let cam = Camera {
-            position: [0.0; 3],
-            yaw: 0.0,
-            pitch: 0.0,
-            fov: 60.0,
-            roll: 30.0,
-            projection: Projection::Perspective,
-        };
+        let cam = Camera { roll: 30.0, ..Camera::perspective([0.0; 3], 0.0, 0.0, 60.0) };
         // A point straight above the view axis appears up and to the left.
         let clip = cam.projection(1.0) * cam.view() * glam::Vec4::new(0.0, 10.0, 1.0, 1.0);
         assert!(clip.x / clip.w < -0.01 && clip.y / clip.w > 0.01, "{clip:?}");
