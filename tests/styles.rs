@@ -264,3 +264,18 @@ fn bad_presets_and_values_are_errors_naming_them() {
     let err = renderer.render(&scene.default_camera, &bad, 32, 32).unwrap_err().to_string();
     assert!(err.contains("color_saturation") && err.contains("0..=2"), "{err}");
 }
+
+#[test]
+fn a_hidden_layer_draws_no_plants() {
+    let camera = trees_on_a_plain(&[]).default_camera;
+    let scene = trees_on_a_plain(&[[-5.0, 5.0], [4.0, 10.0]]);
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    let hidden = FrameStyle {
+        base: Style::default(),
+        layers: [("test".to_owned(), Style { visible: false, ..Style::default() })].into(),
+    };
+    let bare = Renderer::new(gpu(), &trees_on_a_plain(&[])).unwrap();
+    let without_plants = bare.render(&camera, Style::default(), 160, 120).unwrap();
+    assert_eq!(renderer.render(&camera, &hidden, 160, 120).unwrap(), without_plants);
+    assert_ne!(renderer.render(&camera, Style::default(), 160, 120).unwrap(), without_plants);
+}

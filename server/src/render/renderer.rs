@@ -8,7 +8,7 @@ use super::post::{self, CONTOUR_FORMAT, FullscreenPass, OUTPUT_FORMAT, PREFILTER
 use super::profile::{PassTimes, Recorder};
 use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
 use super::scene_gpu::{DrawStats, SceneGpu};
-use super::style::{FrameStyle, PostParams, PostUniform, STYLE_SLOTS, Style, art_groups};
+use super::style::{FrameStyle, PostParams, PostUniform, STYLE_SLOTS, Style, art_groups, style_slot};
 use super::{Gpu, RenderError, readback};
 use crate::prep::cache::DiskCache;
 use crate::prep::lod::LodSettings;
@@ -113,7 +113,7 @@ impl Renderer {
     /// What the geometry pass would draw for `camera`: plants culled and drawn per level of
     /// detail, triangles submitted and the source geometry (the seeds' Table 8.1 figures).
     pub fn draw_stats(&self, camera: &Camera, width: u32, height: u32) -> DrawStats {
-        self.scene.cull(&self.gpu.device, camera, width, height, &self.lod).stats
+        self.scene.cull(&self.gpu.device, camera, (width, height), &self.lod, |_| true).stats
     }
 
     /// Number of tonal art maps (`Style::hatch_map` indexes them) and silhouette art maps
@@ -207,7 +207,7 @@ impl Renderer {
             let gbuffer = GBuffer::new(device, width, height);
             let frame = self.frame_bind_group(camera, &slots, width, height, self.scene.zero_references());
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ids") });
-            let visible = self.scene.cull(device, camera, width, height, &self.lod);
+            let visible = self.scene.cull(device, camera, (width, height), &self.lod, |_| true);
             self.geometry.encode(&mut encoder, &gbuffer, &frame, &self.scene, &visible);
             self.gpu.queue.submit([encoder.finish()]);
             let texels = readback::read_texels(&self.gpu, &gbuffer.id_texture, width, height, 8)?;
@@ -466,7 +466,7 @@ impl Renderer {
         };
 
         let mut recorder = Recorder::new(&self.gpu, times);
-        let visible = self.scene.cull(device, camera, width, height, &self.lod);
+        let visible = self.scene.cull(device, camera, (width, height), &self.lod, |id| slots[style_slot(id)].visible);
         recorder.mark("cull")?;
         self.geometry.encode(recorder.encoder(), &gbuffer, &frame, &self.scene, &visible);
         recorder.mark("geometry")?;

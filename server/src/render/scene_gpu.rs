@@ -499,14 +499,15 @@ impl SceneGpu {
     }
 
     /// Culls the plants against the view frustum of `camera` (for a `width` × `height` image),
-    /// picks each visible plant's level(s) of detail and uploads the instance list.
+    /// leaves out the plants whose object ID `shown` refuses (hidden layers), picks each
+    /// visible plant's level(s) of detail and uploads the instance list.
     pub fn cull(
         &self,
         device: &wgpu::Device,
         camera: &Camera,
-        width: u32,
-        height: u32,
+        (width, height): (u32, u32),
         lod: &LodSettings,
+        shown: impl Fn(u32) -> bool,
     ) -> VisibleSet {
         let aspect = width as f32 / height as f32;
         let planes = frustum_planes(camera.projection(aspect) * camera.view());
@@ -520,6 +521,9 @@ impl SceneGpu {
         for plant in &self.plants {
             let s = &self.species[plant.species];
             let i = &plant.instance;
+            if !shown(i.object_id) {
+                continue;
+            }
             let [x, y, z, scale] = i.offset_scale;
             let [c, sn] = i.rotation;
             let local = s.bounds.center * scale;

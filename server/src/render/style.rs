@@ -157,6 +157,10 @@ macro_rules! style_fields {
 }
 
 style_fields! {
+    /// Whether plants are drawn: `false` in a vegetation layer's style hides that layer (e.g.
+    /// the planned state without the existing plants), in the base style every vegetation
+    /// layer without a style of its own; the terrain is always drawn.
+    visible: bool = true;
     /// Master axis between sketch (0) and photorealism (1), thesis 8.2.7 (where the parameter
     /// runs the other way, 1 = sketch): moves every other parameter continuously towards
     /// photorealistic rendering (see `Style::resolved`).
@@ -328,6 +332,13 @@ impl Style {
 
 /// Name of the terrain in per-layer styles (vegetation layers use their scene names).
 pub const TERRAIN_LAYER: &str = "terrain";
+
+/// The style slot of an object ID: its layer code (top 8 bits), or the base slot 0 beyond the
+/// slots (`style_slot` in the shaders).
+pub fn style_slot(object_id: u32) -> usize {
+    let code = (object_id >> 24) as usize;
+    if code < STYLE_SLOTS { code } else { 0 }
+}
 
 /// Style slots of one frame, indexed by the layer code of the ID buffer: 0 the background (the
 /// base style), 1 the terrain, `i + 2` vegetation layer `i`. Layer codes from here on use the
