@@ -4,23 +4,14 @@
 
 mod common;
 
-use common::{assert_matches_reference, fraction, gpu, luminance, trees_on_a_plain};
-use landsketch::prep::lod::{LodLevel, LodSettings};
+use common::{assert_matches_reference, fraction, full_detail, luminance, trees_on_a_plain};
 use landsketch::render::coherence::{camera_path, flicker};
 use landsketch::render::style::HatchSpace;
-use landsketch::render::{RenderError, RenderOptions, Renderer, Style};
-use landsketch::scene::Scene;
+use landsketch::render::{RenderError, Renderer, Style};
 use landsketch::scene::camera::Camera;
 use std::path::PathBuf;
 
 const SIZE: (u32, u32) = (192, 192);
-
-/// The full model at every distance: these tests are about the NPR passes, not the levels of
-/// detail (`tests/lod.rs`).
-fn full_detail(scene: &Scene) -> Renderer {
-    let lod = LodSettings { force: Some(LodLevel::Full), ..LodSettings::default() };
-    Renderer::with_options(gpu(), scene, &RenderOptions { lod, ..RenderOptions::default() }).unwrap()
-}
 
 /// A close view of one tree filling most of the frame.
 fn close_up() -> (Renderer, Camera) {

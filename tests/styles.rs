@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{assert_matches_reference, gpu, luminance, trees_on_a_plain};
+use common::{assert_matches_reference, full_detail, gpu, luminance, trees_on_a_plain};
 use landsketch::render::presets::PRESETS;
 use landsketch::render::style::{FrameStyle, TERRAIN_LAYER};
 use landsketch::render::{RenderError, Renderer, Style};
@@ -185,7 +185,7 @@ fn photoreal_pixels_are_albedo_times_lambert_and_ambient() {
 #[test]
 fn hlp_abstraction_pulls_leaves_onto_their_spheres() {
     let scene = trees_on_a_plain(&[[0.0, 0.0]]);
-    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    let renderer = full_detail(&scene);
     let camera = Camera { position: [0.0, -16.0, 105.5], pitch: 8.0, fov: 50.0, ..scene.default_camera };
     let plain = Style { hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
     let original = renderer.render(&camera, &plain, SIZE.0, SIZE.1).unwrap();

@@ -6,7 +6,8 @@ pub mod server;
 
 use image::RgbaImage;
 use landsketch::gis::{Crs, GeoTransform, Raster};
-use landsketch::render::Gpu;
+use landsketch::prep::lod::{LodLevel, LodSettings};
+use landsketch::render::{Gpu, RenderOptions, Renderer};
 use landsketch::scene::camera::Camera;
 use landsketch::scene::procedural::{ProceduralKind, procedural_plant};
 use landsketch::scene::terrain::Terrain;
@@ -20,6 +21,13 @@ pub fn gpu() -> Arc<Gpu> {
     static GPU: OnceLock<Arc<Gpu>> = OnceLock::new();
     GPU.get_or_init(|| Arc::new(Gpu::new().expect("a Vulkan adapter (lavapipe: apt-get install mesa-vulkan-drivers)")))
         .clone()
+}
+
+/// A renderer drawing every plant with its full model at every distance: for tests of the NPR
+/// passes and styles, not of the levels of detail (`tests/lod.rs`).
+pub fn full_detail(scene: &Scene) -> Renderer {
+    let lod = LodSettings { force: Some(LodLevel::Full), ..LodSettings::default() };
+    Renderer::with_options(gpu(), scene, &RenderOptions { lod, ..RenderOptions::default() }).expect("renderer")
 }
 
 /// A flat 200 m × 200 m terrain at 100 m with procedural broadleaf trees at `positions`

@@ -33,6 +33,8 @@ pub struct Renderer {
     profile_every: u32,
     frames: std::sync::atomic::AtomicU32,
     pass_times: std::sync::Mutex<Option<PassTimes>>,
+    /// Render targets of recent frame sizes; the lock also serialises frames of one renderer.
+    targets: std::sync::Mutex<Vec<FrameTargets>>,
     art: ArtTextures,
     sun: glam::Vec3,
     /// Names of the scene's vegetation layers, in layer-code order (per-layer styles).
@@ -57,6 +59,55 @@ fn error_chain(error: &wgpu::Error) -> String {
 pub struct ViewState {
     references: ReferenceCoords,
     buffer: wgpu::Buffer,
+}
+
+/// The render targets of one frame size, kept for the next frames of that size: allocating
+/// (and on a CPU adapter, page-faulting) ~60 MB of targets per 1024×768 frame costs time.
+struct FrameTargets {
+    width: u32,
+    height: u32,
+    gbuffer: GBuffer,
+    prefiltered: wgpu::TextureView,
+    contours: wgpu::TextureView,
+    data_layers: wgpu::TextureView,
+    output: wgpu::Texture,
+    output_view: wgpu::TextureView,
+}
+
+/// How many frame sizes keep their targets (a WebSocket session alternates two: moving and
+/// still frames).
+const CACHED_TARGET_SIZES: usize = 3;
+
+impl FrameTargets {
+    fn new(device: &wgpu::Device, width: u32, height: u32) -> FrameTargets {
+        let view = |texture: wgpu::Texture| texture.create_view(&Default::default());
+        let output = render_target(device, "output", OUTPUT_FORMAT, width, height);
+        FrameTargets {
+            width,
+            height,
+            gbuffer: GBuffer::new(device, width, height),
+            prefiltered: view(render_target(device, "prefiltered depth", PREFILTER_FORMAT, width, height)),
+            contours: view(render_target(device, "contours", CONTOUR_FORMAT, width, height)),
+            data_layers: view(render_target(device, "data layers", DATA_FORMAT, width, height)),
+            output_view: output.create_view(&Default::default()),
+            output,
+        }
+    }
+
+    /// The targets of a `width` × `height` frame from `cache` (most recently used last),
+    /// allocated when missing; the least recently used size is dropped beyond
+    /// [`CACHED_TARGET_SIZES`].
+    fn get<'a>(cache: &'a mut Vec<FrameTargets>, device: &wgpu::Device, width: u32, height: u32) -> &'a FrameTargets {
+        let targets = match cache.iter().position(|t| (t.width, t.height) == (width, height)) {
+            Some(index) => cache.remove(index),
+            None => FrameTargets::new(device, width, height),
+        };
+        cache.push(targets);
+        if cache.len() > CACHED_TARGET_SIZES {
+            cache.remove(0);
+        }
+        &cache[cache.len() - 1]
+    }
 }
 
 /// Options fixed for the lifetime of a [`Renderer`].
@@ -107,6 +158,7 @@ impl Renderer {
             profile_every: options.profile_every,
             frames: Default::default(),
             pass_times: Default::default(),
+            targets: Default::default(),
         })
     }
 
@@ -393,15 +445,9 @@ impl Renderer {
     ) -> Result<FrameWithDepth, RenderError> {
         let device = &self.gpu.device;
         let started = std::time::Instant::now();
-        let gbuffer = GBuffer::new(device, width, height);
-        let prefiltered = render_target(device, "prefiltered depth", PREFILTER_FORMAT, width, height)
-            .create_view(&Default::default());
-        let contours =
-            render_target(device, "contours", CONTOUR_FORMAT, width, height).create_view(&Default::default());
-        let data_layers =
-            render_target(device, "data layers", DATA_FORMAT, width, height).create_view(&Default::default());
-        let output = render_target(device, "output", OUTPUT_FORMAT, width, height);
-        let output_view = output.create_view(&Default::default());
+        let mut cache = self.targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let targets = FrameTargets::get(&mut cache, device, width, height);
+        let FrameTargets { gbuffer, prefiltered, contours, data_layers, output, output_view, .. } = targets;
 
         let frame = self.frame_bind_group(camera, slots, width, height, references);
         // One post uniform block per silhouette-art-map group, each with the styles of all
@@ -424,7 +470,7 @@ impl Renderer {
             .collect();
         let post_buffer = &post_buffers[0];
         let view = wgpu::BindingResource::TextureView;
-        let depth_for_contours = if style.contour_prefilter { &prefiltered } else { &gbuffer.linear_depth };
+        let depth_for_contours = if style.contour_prefilter { prefiltered } else { &gbuffer.linear_depth };
         let prefilter_inputs = self.prefilter.bind_group(device, post_buffer, &[view(&gbuffer.linear_depth)]);
         let contour_inputs = self.contour.bind_group(
             device,
@@ -439,7 +485,7 @@ impl Renderer {
                     device,
                     buffer,
                     &[
-                        view(&contours),
+                        view(contours),
                         view(&gbuffer.linear_depth),
                         view(&gbuffer.id),
                         view(&gbuffer.hatch),
@@ -449,7 +495,7 @@ impl Renderer {
                         view(&self.art.sams[sam]),
                         wgpu::BindingResource::Sampler(&self.art.tam_sampler),
                         wgpu::BindingResource::Sampler(&self.art.sam_sampler),
-                        view(&data_layers),
+                        view(data_layers),
                     ],
                 )
             })
@@ -468,26 +514,26 @@ impl Renderer {
         let mut recorder = Recorder::new(&self.gpu, times);
         let visible = self.scene.cull(device, camera, (width, height), &self.lod, |id| slots[style_slot(id)].visible);
         recorder.mark("cull")?;
-        self.geometry.encode(recorder.encoder(), &gbuffer, &frame, &self.scene, &visible);
+        self.geometry.encode(recorder.encoder(), gbuffer, &frame, &self.scene, &visible);
         recorder.mark("geometry")?;
         if style.contour_prefilter {
-            self.prefilter.encode(recorder.encoder(), &prefiltered, &prefilter_inputs);
+            self.prefilter.encode(recorder.encoder(), prefiltered, &prefilter_inputs);
             recorder.mark("prefilter")?;
         }
-        self.contour.encode(recorder.encoder(), &contours, &contour_inputs);
+        self.contour.encode(recorder.encoder(), contours, &contour_inputs);
         recorder.mark("contour")?;
-        self.projection.encode(&self.gpu, recorder.encoder(), &data_layers, &data_inputs, data)?;
+        self.projection.encode(&self.gpu, recorder.encoder(), data_layers, &data_inputs, data)?;
         recorder.mark("data")?;
         for (group, inputs) in compose_inputs.iter().enumerate() {
             if group == 0 {
-                self.compose.encode(recorder.encoder(), &output_view, inputs);
+                self.compose.encode(recorder.encoder(), output_view, inputs);
             } else {
-                self.compose.encode_over(recorder.encoder(), &output_view, inputs);
+                self.compose.encode_over(recorder.encoder(), output_view, inputs);
             }
         }
         recorder.mark("compose")?;
         let mut timer = recorder.submit();
-        let image = readback::read_rgba8(&self.gpu, &output, width, height)?;
+        let image = readback::read_rgba8(&self.gpu, output, width, height)?;
         timer.mark("readback");
         let depth = if with_depth {
             let texels = readback::read_texels(&self.gpu, &gbuffer.linear_depth_texture, width, height, 8)?;
