@@ -1,8 +1,9 @@
 //! The HTTP server (`landsketch serve`): rendered views over REST (`/api/render`), live frame
 //! streams over WebSocket (`/api/ws`), scene description, the data-layer store
-//! (`/api/layers`), health, Prometheus metrics and an OpenAPI document. One render worker owns the GPU renderer; REST requests and WebSocket
+//! (`/api/layers`), art maps (`/api/artmaps`), health, Prometheus metrics and an OpenAPI document. One render worker owns the GPU renderer; REST requests and WebSocket
 //! sessions share it round-robin (see [`pool`]).
 
+pub mod artmaps;
 pub mod auth;
 pub mod cache;
 pub mod config;
@@ -23,6 +24,7 @@ use crate::fields::SceneGeo;
 use crate::render::{Gpu, RenderError};
 use crate::scene::{Scene, SceneError};
 use crate::store::{Store, StoreError, StoreLimits};
+use artmaps::ArtMaps;
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, FromRef};
 use axum::handler::HandlerWithoutStateExt;
@@ -90,6 +92,8 @@ pub struct Ready {
     /// Where the scene lies, for placing uploaded layers; the error says why layers cannot be
     /// placed (a DEM CRS without EPSG code).
     pub geo: Result<Arc<SceneGeo>, String>,
+    /// The renderer's art maps and which were uploaded (`/api/artmaps`).
+    pub art: ArtMaps,
 }
 
 struct Inner {
@@ -184,6 +188,14 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         .route("/api/layers/{id}", get(layers::get).delete(layers::delete))
         .route("/api/layers/{id}/legend.png", get(layers::legend_png))
         .route("/api/layers/{id}/legend.json", get(layers::legend_json))
+        .route("/api/artmaps", get(artmaps::list))
+        .route(
+            "/api/artmaps/{kind}/{index}",
+            get(artmaps::png)
+                .put(artmaps::put)
+                .delete(artmaps::delete)
+                .layer(DefaultBodyLimit::max(artmaps::MAX_ART_MAP_BYTES)),
+        )
         .route("/api/ws", get(ws::upgrade))
         .route("/api/openapi.json", get(openapi::openapi_json))
         .route("/metrics", get(metrics::metrics_handler))
@@ -351,6 +363,7 @@ async fn load(state: AppState, loaded: Option<(Arc<Scene>, Arc<Gpu>)>) -> Result
             metrics.clone(),
             runtime,
         )?;
+        let art = ArtMaps::restore(&pool, state.store());
         let cache = RenderCache::new(config.cache_bytes, metrics);
         let geo = SceneGeo::from_terrain(&scene.terrain).map(Arc::new).map_err(|e| e.to_string());
         if let Err(e) = &geo {
@@ -364,7 +377,7 @@ async fn load(state: AppState, loaded: Option<(Arc<Scene>, Arc<Gpu>)>) -> Result
             "scene ready"
         );
         // `load` runs once per state, so the cell is empty.
-        let _ = state.0.ready.set(Ready { scene, scene_id, adapter, pool, cache, geo });
+        let _ = state.0.ready.set(Ready { scene, scene_id, adapter, pool, cache, geo, art });
         Ok(())
     })
     .await

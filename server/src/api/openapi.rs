@@ -1,6 +1,6 @@
 //! The OpenAPI 3 document of the server (`GET /api/openapi.json`).
 
-use super::{error, layers, metrics, routes, view, ws};
+use super::{artmaps, error, layers, metrics, routes, view, ws};
 use axum::Json;
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
 use utoipa::{Modify, OpenApi};
@@ -10,7 +10,7 @@ use utoipa::{Modify, OpenApi};
 #[openapi(
     info(
         title = "landsketch",
-        description = "Pen-and-ink renderings of GIS landscapes over HTTP and WebSocket. Rendering, the WebSocket and reading layers are public; write endpoints (layer upload and delete, cache clearing) need `Authorization: Bearer <token>` when the server has an admin token, else a loopback client."
+        description = "Pen-and-ink renderings of GIS landscapes over HTTP and WebSocket. Rendering, the WebSocket and reading layers are public; write endpoints (layer upload and delete, art-map upload and delete, cache clearing) need `Authorization: Bearer <token>` when the server has an admin token, else a loopback client."
     ),
     paths(
         routes::health,
@@ -24,6 +24,10 @@ use utoipa::{Modify, OpenApi};
         layers::delete,
         layers::legend_png,
         layers::legend_json,
+        artmaps::list,
+        artmaps::png,
+        artmaps::put,
+        artmaps::delete,
         ws::upgrade,
         metrics::metrics_handler,
         openapi_json,
@@ -34,6 +38,7 @@ use utoipa::{Modify, OpenApi};
         (name = "render", description = "Rendered views: REST and WebSocket"),
         (name = "scene", description = "The scene"),
         (name = "layers", description = "Environment data layers: upload, list, legends, delete"),
+        (name = "art maps", description = "Tonal and silhouette art maps: list, download, replace or add, restore"),
         (name = "operations", description = "Health, metrics, cache, this document"),
     )
 )]

@@ -7,6 +7,7 @@
 use super::data::LayerCache;
 use super::metrics::{KindLabels, Metrics};
 use super::view::ViewRequest;
+use crate::render::art_textures::{ArtKind, ArtMap, ArtMapSet};
 use crate::render::renderer::ViewState;
 use crate::render::{Gpu, RenderError, RenderOptions, Renderer};
 use crate::scene::Scene;
@@ -93,6 +94,23 @@ impl Job {
     }
 }
 
+/// A change of the renderer's art maps (thesis 8.2.5), applied by the worker between frames.
+#[derive(Debug, Clone)]
+pub enum ArtChange {
+    /// Replaces map `index` of the map's kind, or adds it when `index` is the count.
+    Set { index: usize, map: ArtMap },
+    /// Removes map `index` of `kind`, which must be the last one.
+    Remove { kind: ArtKind, index: usize },
+}
+
+/// Where the answer to an art-map change arrives: the art maps after the change.
+pub type ArtReceiver = oneshot::Receiver<Result<ArtMapSet, PoolError>>;
+
+struct ArtJob {
+    change: ArtChange,
+    reply: oneshot::Sender<Result<ArtMapSet, PoolError>>,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Lane {
     Rest,
@@ -107,6 +125,8 @@ struct Queue {
     sessions: HashMap<u64, Job>,
     /// Sessions that ended since the worker last looked; their view states are dropped.
     left: Vec<u64>,
+    /// Art-map changes, applied before the next frame.
+    art: VecDeque<ArtJob>,
     next_session: u64,
     closed: bool,
 }
@@ -157,10 +177,17 @@ impl Shared {
     }
 
     /// Blocks until a job is available; `None` once the pool is closed and drained. Also
-    /// returns the sessions that ended meanwhile.
-    fn next_job(&self) -> Option<(Job, Vec<u64>)> {
+    /// returns the sessions that ended meanwhile. Waiting art-map changes go to `apply_art`
+    /// first (outside the lock), so a frame sees every change made before it was taken.
+    fn next_job(&self, mut apply_art: impl FnMut(ArtJob)) -> Option<(Job, Vec<u64>)> {
         let mut queue = self.lock();
         loop {
+            if let Some(art) = queue.art.pop_front() {
+                drop(queue);
+                apply_art(art);
+                queue = self.lock();
+                continue;
+            }
             if let Some(job) = queue.pop() {
                 self.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
                 return Some((job, std::mem::take(&mut queue.left)));
@@ -177,6 +204,8 @@ impl Shared {
 pub struct RenderPool {
     shared: Arc<Shared>,
     worker: Mutex<Option<std::thread::JoinHandle<()>>>,
+    /// The art maps the renderer was built with (the generated defaults).
+    initial_art: ArtMapSet,
 }
 
 impl RenderPool {
@@ -206,20 +235,20 @@ impl RenderPool {
             drop(scene);
             // The receiver only goes away when `start` has returned already.
             match renderer {
-                Ok(renderer) => {
-                    let _ = ready_tx.send(Ok(()));
-                    work(&worker_shared, &renderer, &store, &runtime);
+                Ok(mut renderer) => {
+                    let _ = ready_tx.send(Ok(renderer.art_maps().clone()));
+                    work(&worker_shared, &mut renderer, &store, &runtime);
                 }
                 Err(error) => {
                     let _ = ready_tx.send(Err(error.to_string()));
                 }
             }
         })?;
-        ready_rx
+        let initial_art = ready_rx
             .recv()
             .map_err(|_| std::io::Error::other("the render thread died while building the renderer"))?
             .map_err(|message| std::io::Error::other(format!("cannot build the renderer: {message}")))?;
-        Ok(RenderPool { shared, worker: Mutex::new(Some(worker)) })
+        Ok(RenderPool { shared, worker: Mutex::new(Some(worker)), initial_art })
     }
 
     /// Queues a REST render; refused when the REST lane is full or the pool is closed.
@@ -242,6 +271,24 @@ impl RenderPool {
         queue.rest.push_back(job);
         self.shared.queued(&queue);
         Ok(receiver)
+    }
+
+    /// Queues an art-map change; the worker applies it before its next frame and answers with
+    /// the art maps after it. Refused once the pool is closed.
+    pub fn change_art(&self, change: ArtChange) -> Result<ArtReceiver, PoolError> {
+        let mut queue = self.shared.lock();
+        if queue.closed {
+            return Err(PoolError::Closed);
+        }
+        let (reply, receiver) = oneshot::channel();
+        queue.art.push_back(ArtJob { change, reply });
+        self.shared.wake.notify_one();
+        Ok(receiver)
+    }
+
+    /// The art maps the renderer was built with: the generated defaults.
+    pub fn initial_art_maps(&self) -> &ArtMapSet {
+        &self.initial_art
     }
 
     /// A lane for one WebSocket session.
@@ -283,10 +330,12 @@ impl Drop for RenderPool {
 /// The worker loop. REST views render without history (deterministic); each WebSocket session
 /// keeps a [`ViewState`] so its hatching follows the camera from frame to frame (thesis
 /// eq. 6.2), dropped when the session ends.
-fn work(shared: &Shared, renderer: &Renderer, store: &Store, runtime: &Handle) {
+fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handle) {
     let mut views: HashMap<u64, ViewState> = HashMap::new();
     let mut layers = LayerCache::default();
-    while let Some((Job { view, kind, session, reply }, left)) = shared.next_job() {
+    loop {
+        let next = shared.next_job(|job| apply_art(renderer, job));
+        let Some((Job { view, kind, session, reply }, left)) = next else { break };
         for id in left {
             views.remove(&id);
         }
@@ -328,6 +377,21 @@ fn work(shared: &Shared, renderer: &Renderer, store: &Store, runtime: &Handle) {
             let _ = reply.send(result);
         });
     }
+}
+
+/// Applies an art-map change on the worker and answers with the art maps after it.
+fn apply_art(renderer: &mut Renderer, ArtJob { change, reply }: ArtJob) {
+    let applied = std::panic::catch_unwind(AssertUnwindSafe(|| match change {
+        ArtChange::Set { index, map } => renderer.set_art_map(index, map),
+        ArtChange::Remove { kind, index } => renderer.remove_art_map(kind, index),
+    }));
+    let result = match applied {
+        Ok(Ok(())) => Ok(renderer.art_maps().clone()),
+        Ok(Err(error)) => Err(PoolError::Render(error)),
+        Err(_) => Err(PoolError::Panicked),
+    };
+    // The requester may have left; the change stays applied either way.
+    let _ = reply.send(result);
 }
 
 /// One WebSocket session's lane: at most one job, replaced by newer views until the worker

@@ -7,9 +7,9 @@ use super::error::{ApiError, ErrorBody};
 use super::pool::PoolError;
 use super::view::{ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, style_json};
 use super::{AppState, Ready};
-use crate::render::Style;
 use crate::render::presets::PRESETS;
 use crate::render::style::FieldSchema;
+use crate::render::{RenderError, Style};
 use crate::scene::camera::Camera;
 use axum::Json;
 use axum::body::Bytes;
@@ -263,7 +263,10 @@ fn parse_body(body: &[u8]) -> Result<ViewParams, ApiError> {
 /// Answers a normalized view: 304 when `If-None-Match` matches, else from the cache or the
 /// renderer.
 async fn render_view(ready: &Ready, view: ViewRequest, headers: &HeaderMap) -> Result<Response, ApiError> {
-    let etag = view.etag(&ready.scene_id);
+    // Art maps change at run time: the generation tells whether a frame may be cached under
+    // this ETag (an upload between the ETag and the render would make it stale).
+    let art_generation = ready.art.generation();
+    let etag = view.etag(&ready.art.etag_basis(&ready.scene_id));
     let etag_header = HeaderValue::from_str(&etag).map_err(|e| ApiError::Internal(e.to_string()))?;
     let link = format!("/api/render?{}", view.to_params().to_query());
     let warnings: Vec<HeaderValue> = view.data.warnings.iter().filter_map(|w| warning_header(w)).collect();
@@ -290,7 +293,9 @@ async fn render_view(ready: &Ready, view: ViewRequest, headers: &HeaderMap) -> R
             let receiver = ready.pool.submit(view.clone()).map_err(pool_error)?;
             let frame = receiver.await.map_err(|_| ApiError::ShuttingDown)?.map_err(pool_error)?;
             let image = CachedImage { bytes: frame.bytes, render_ms: frame.render_ms };
-            ready.cache.insert(etag.clone(), image.clone());
+            if ready.art.generation() == art_generation {
+                ready.cache.insert(etag.clone(), image.clone());
+            }
             (image, "miss")
         }
     };
@@ -330,6 +335,10 @@ pub fn pool_error(error: PoolError) -> ApiError {
             retry_after: retry_after_s,
         },
         PoolError::Closed | PoolError::Cancelled => ApiError::ShuttingDown,
+        // Art maps can be added and removed at run time, so an index is checked on render.
+        PoolError::Render(error @ RenderError::UnknownArtMap { field, .. }) => {
+            ApiError::invalid(format!("style.{field}"), error.to_string())
+        }
         other => ApiError::Internal(other.to_string()),
     }
 }

@@ -170,6 +170,14 @@ pub enum ServerMessage {
         /// Unsuitable or limited mappings (Table 9.1) and clamped times.
         warnings: Vec<String>,
     },
+    /// The art maps changed (`/api/artmaps`): how many there are now; a frame of the view
+    /// with the new maps follows.
+    ArtMaps {
+        /// Tonal art maps (`hatch_map` 0…tams − 1).
+        tams: usize,
+        /// Silhouette art maps (`silhouette_map` 0…sams − 1).
+        sams: usize,
+    },
     /// Answer to `ping`.
     Pong {
         /// The ping's `id`.
@@ -330,12 +338,15 @@ struct InFlight {
     view: ViewRequest,
     kind: FrameKind,
     seq: u32,
+    /// The art-map generation when the view was queued.
+    art: u64,
     receiver: FrameReceiver,
 }
 
 enum Event {
     Message(Option<Result<Message, axum::Error>>),
     Frame(Result<Frame, PoolError>),
+    ArtMaps,
     Wake,
     Idle,
     Shutdown,
@@ -397,6 +408,7 @@ impl<'a> Session<'a> {
     async fn run(mut self, mut socket: WebSocket) {
         let config = self.state.config();
         let mut shutdown = self.state.shutdown_receiver();
+        let mut art_maps = self.ready.art.subscribe();
         let hello = ServerMessage::Hello {
             session: self.id,
             protocol: PROTOCOL_VERSION,
@@ -418,6 +430,7 @@ impl<'a> Session<'a> {
             let event = tokio::select! {
                 message = socket.recv() => Event::Message(message),
                 frame = frame_done(&mut self.in_flight) => Event::Frame(frame),
+                Ok(()) = art_maps.changed() => Event::ArtMaps,
                 () = sleep_until(wake_at) => Event::Wake,
                 () = tokio::time::sleep_until(idle_at) => Event::Idle,
                 _ = shutdown.wait_for(|stopping| *stopping) => Event::Shutdown,
@@ -442,6 +455,12 @@ impl<'a> Session<'a> {
                         return;
                     }
                     None
+                }
+                Event::ArtMaps => {
+                    // The view is shown again with the new maps.
+                    self.delivered = None;
+                    let (tams, sams) = self.ready.art.counts();
+                    Some(ServerMessage::ArtMaps { tams, sams })
                 }
                 Event::Wake => None,
                 Event::Idle => {
@@ -640,7 +659,7 @@ impl<'a> Session<'a> {
             if in_flight.view == view {
                 in_flight.seq = self.seq;
             } else if let Some(receiver) = self.lane.replace(view.clone(), kind) {
-                *in_flight = InFlight { view, kind, seq: self.seq, receiver };
+                *in_flight = InFlight { view, kind, seq: self.seq, art: self.ready.art.generation(), receiver };
             }
             // Otherwise the render has started; the newest view follows when it is done.
             return;
@@ -656,7 +675,8 @@ impl<'a> Session<'a> {
         }
         match self.lane.render(view.clone(), kind) {
             Ok(receiver) => {
-                self.in_flight = Some(InFlight { view, kind, seq: self.seq, receiver });
+                let art = self.ready.art.generation();
+                self.in_flight = Some(InFlight { view, kind, seq: self.seq, art, receiver });
                 self.last_submit = Some(now);
             }
             Err(error) => tracing::debug!(session = self.id, %error, "no render queued"),
@@ -704,7 +724,8 @@ impl<'a> Session<'a> {
         send_json(socket, &status).await?;
         socket.send(Message::Binary(Bytes::from(binary))).await?;
         self.state.metrics().frames_sent.get_or_create(&done.kind.label()).inc();
-        self.delivered = Some(done.view);
+        // A frame queued before an art-map change may show the old maps: it is shown again.
+        self.delivered = (done.art == self.ready.art.generation()).then_some(done.view);
         Ok(())
     }
 }

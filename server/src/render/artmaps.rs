@@ -47,6 +47,11 @@ use std::path::{Path, PathBuf};
 pub const MIN_STROKE_MIP_SIZE: u32 = 8;
 /// The smallest TAM tone image side (generated or loaded).
 pub const MIN_TAM_SIZE: u32 = 16;
+/// The smallest side of a loaded SAM in pixels.
+pub const MIN_SAM_SIZE: u32 = 8;
+/// The largest side of an art map PNG in pixels (a TAM strip holds every tone level side by
+/// side), checked from the PNG header before decoding.
+pub const MAX_ART_MAP_SIDE: u32 = 16384;
 
 /// Candidate strokes tried per placed TAM stroke (the least crowded one wins).
 const CANDIDATES: usize = 8;
@@ -311,7 +316,13 @@ impl Tam {
     /// are built by box-filter downsampling, so unlike generated TAMs the strokes of a loaded
     /// TAM do not keep their pixel width in the smaller mips.
     pub fn from_png(path: &Path, levels: usize) -> Result<Tam, ArtMapError> {
-        let strip = read_png(path)?.to_luma8();
+        Tam::from_png_bytes(&read_file(path)?, levels, path)
+    }
+
+    /// [`Tam::from_png`] from PNG bytes in memory (an upload); `name` stands for the file in
+    /// errors.
+    pub fn from_png_bytes(bytes: &[u8], levels: usize, name: &Path) -> Result<Tam, ArtMapError> {
+        let strip = decode_png(bytes, name)?.to_luma8();
         let (width, height) = strip.dimensions();
         let shape_ok = levels >= 1
             && height.is_power_of_two()
@@ -319,7 +330,7 @@ impl Tam {
             && u64::from(width) == levels as u64 * u64::from(height);
         if !shape_ok {
             return Err(ArtMapError::Shape {
-                path: path.to_path_buf(),
+                path: name.to_path_buf(),
                 width,
                 height,
                 expected: format!(
@@ -371,7 +382,23 @@ impl Sam {
     /// Loads a SAM from any PNG; its channels are taken as they are after conversion to RGBA8
     /// (so a grey PNG gives three equal channels and an opaque, i.e. fully inked, alpha).
     pub fn from_png(path: &Path) -> Result<Sam, ArtMapError> {
-        Ok(Sam { image: read_png(path)?.to_rgba8() })
+        Sam::from_png_bytes(&read_file(path)?, path)
+    }
+
+    /// [`Sam::from_png`] from PNG bytes in memory (an upload); `name` stands for the file in
+    /// errors. The image must be at least [`MIN_SAM_SIZE`] pixels on each side.
+    pub fn from_png_bytes(bytes: &[u8], name: &Path) -> Result<Sam, ArtMapError> {
+        let image = decode_png(bytes, name)?.to_rgba8();
+        let (width, height) = image.dimensions();
+        if width < MIN_SAM_SIZE || height < MIN_SAM_SIZE {
+            return Err(ArtMapError::Shape {
+                path: name.to_path_buf(),
+                width,
+                height,
+                expected: format!("at least {MIN_SAM_SIZE}×{MIN_SAM_SIZE} (u along the contour × support)"),
+            });
+        }
+        Ok(Sam { image })
     }
 }
 
@@ -521,15 +548,24 @@ fn sam_sketchy_lines(c: usize, width: f32, k: f32, rng: &mut Rng) -> Vec<Stroke>
     strokes
 }
 
-/// Reads and decodes a PNG file, checking its signature first.
-fn read_png(path: &Path) -> Result<image::DynamicImage, ArtMapError> {
+/// Reads an art map file.
+fn read_file(path: &Path) -> Result<Vec<u8>, ArtMapError> {
+    std::fs::read(path).map_err(|source| ArtMapError::Io { path: path.to_path_buf(), source })
+}
+
+/// Decodes PNG bytes, checking the signature first and the size in the header before any
+/// pixel is allocated (at most [`MAX_ART_MAP_SIDE`] per side); `path` names the file in errors.
+fn decode_png(bytes: &[u8], path: &Path) -> Result<image::DynamicImage, ArtMapError> {
     const SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
-    let bytes = std::fs::read(path).map_err(|source| ArtMapError::Io { path: path.to_path_buf(), source })?;
     if !bytes.starts_with(SIGNATURE) {
         return Err(ArtMapError::NotPng { path: path.to_path_buf() });
     }
-    image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
-        .map_err(|source| ArtMapError::Decode { path: path.to_path_buf(), source })
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_ART_MAP_SIDE);
+    limits.max_image_height = Some(MAX_ART_MAP_SIDE);
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
+    reader.limits(limits);
+    reader.decode().map_err(|source| ArtMapError::Decode { path: path.to_path_buf(), source })
 }
 
 /// A stroke: a polyline with a radius per point, in texture units (TAM) or pixels (SAM).

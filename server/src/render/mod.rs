@@ -45,6 +45,10 @@ pub enum RenderError {
     /// A style names an art map the renderer does not have.
     #[error("style parameter `{field}` = {index} names no art map (there are {count})")]
     UnknownArtMap { field: &'static str, index: usize, count: usize },
+    /// An art-map change the renderer refuses (an index beyond the maps, a TAM whose shape
+    /// differs from the others', too many maps).
+    #[error("{kind} {index}: {message}")]
+    ArtMap { kind: art_textures::ArtKind, index: usize, message: String },
     /// Data layers that cannot be drawn (too many mappings, an unsupported target, a field that
     /// cannot be placed in the scene).
     #[error("data layers: {0}")]

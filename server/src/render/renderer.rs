@@ -165,7 +165,7 @@ impl Renderer {
     /// What the geometry pass would draw for `camera`: plants culled and drawn per level of
     /// detail, triangles submitted and the source geometry (the seeds' Table 8.1 figures).
     pub fn draw_stats(&self, camera: &Camera, width: u32, height: u32) -> DrawStats {
-        self.scene.cull(&self.gpu.device, camera, (width, height), &self.lod, |_| true).stats
+        self.scene.cull(camera, (width, height), &self.lod, |_| true).stats
     }
 
     /// Number of tonal art maps (`Style::hatch_map` indexes them) and silhouette art maps
@@ -259,7 +259,10 @@ impl Renderer {
             let gbuffer = GBuffer::new(device, width, height);
             let frame = self.frame_bind_group(camera, &slots, width, height, self.scene.zero_references());
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ids") });
-            let visible = self.scene.cull(device, camera, (width, height), &self.lod, |_| true);
+            // The instance buffer is shared: one frame at a time.
+            let _frame = self.targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            let visible = self.scene.cull(camera, (width, height), &self.lod, |_| true);
+            self.scene.upload(&self.gpu.queue, &visible);
             self.geometry.encode(&mut encoder, &gbuffer, &frame, &self.scene, &visible);
             self.gpu.queue.submit([encoder.finish()]);
             let texels = readback::read_texels(&self.gpu, &gbuffer.id_texture, width, height, 8)?;
@@ -512,7 +515,8 @@ impl Renderer {
         };
 
         let mut recorder = Recorder::new(&self.gpu, times);
-        let visible = self.scene.cull(device, camera, (width, height), &self.lod, |id| slots[style_slot(id)].visible);
+        let visible = self.scene.cull(camera, (width, height), &self.lod, |id| slots[style_slot(id)].visible);
+        self.scene.upload(&self.gpu.queue, &visible);
         recorder.mark("cull")?;
         self.geometry.encode(recorder.encoder(), gbuffer, &frame, &self.scene, &visible);
         recorder.mark("geometry")?;

@@ -98,9 +98,9 @@ impl DrawStats {
     }
 }
 
-/// The plants one frame draws: a per-frame instance buffer in (species, level) runs.
+/// The plants one frame draws: its instance list in (species, level) runs.
 pub struct VisibleSet {
-    instances: wgpu::Buffer,
+    instances: Vec<Instance>,
     batches: Vec<(usize, LodLevel, Range<u32>)>,
     pub stats: DrawStats,
 }
@@ -116,6 +116,8 @@ pub struct SceneGpu {
     reference_centers: Vec<Vec3>,
     /// All-zero reference coordinates for stateless frames.
     zero_references: wgpu::Buffer,
+    /// The instances of a frame: room for every plant at two levels, and the terrain.
+    instance_buffer: wgpu::Buffer,
     /// GPU memory of everything above.
     gpu_bytes: u64,
 }
@@ -353,7 +355,22 @@ impl SceneGpu {
         let gpu_bytes = up.bytes
             + 8 * reference_centers.len() as u64
             + 2 * (plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64;
-        Ok(SceneGpu { terrain, species, plants, source_triangles, reference_centers, zero_references, gpu_bytes })
+        let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("instances"),
+            size: (2 * plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(SceneGpu {
+            terrain,
+            species,
+            plants,
+            source_triangles,
+            reference_centers,
+            zero_references,
+            instance_buffer,
+            gpu_bytes,
+        })
     }
 
     /// Uploads one species at every level of detail; bakes (or loads) its billboard atlas.
@@ -500,10 +517,10 @@ impl SceneGpu {
 
     /// Culls the plants against the view frustum of `camera` (for a `width` × `height` image),
     /// leaves out the plants whose object ID `shown` refuses (hidden layers), picks each
-    /// visible plant's level(s) of detail and uploads the instance list.
+    /// visible plant's level(s) of detail. [`SceneGpu::upload`] then writes the instance list to
+    /// the GPU.
     pub fn cull(
         &self,
-        device: &wgpu::Device,
         camera: &Camera,
         (width, height): (u32, u32),
         lod: &LodSettings,
@@ -569,17 +586,19 @@ impl SceneGpu {
             instances.extend(run);
             batches.push((run_index / 3, LodLevel::ALL[run_index % 3], start..instances.len() as u32));
         }
-        let instances = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("visible instances"),
-            contents: bytemuck::cast_slice(&instances),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
         VisibleSet { instances, batches, stats }
+    }
+
+    /// Writes the instance list of `visible` to the instance buffer, which is reused by every
+    /// frame (one frame at a time: the caller serialises frames).
+    pub fn upload(&self, queue: &wgpu::Queue, visible: &VisibleSet) {
+        queue.write_buffer(&self.instance_buffer, 0, bytemuck::cast_slice(&visible.instances));
     }
 
     /// Records the draws of the terrain and every visible instance run.
     pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, visible: &VisibleSet) {
-        pass.set_vertex_buffer(1, visible.instances.slice(..));
+        let bytes = std::mem::size_of_val(visible.instances.as_slice()) as u64;
+        pass.set_vertex_buffer(1, self.instance_buffer.slice(..bytes));
         let mut draw = |mesh: &GpuMesh, instances: Range<u32>| {
             pass.set_bind_group(1, &mesh.material, &[]);
             pass.set_vertex_buffer(0, mesh.vertices.slice(..));

@@ -28,6 +28,12 @@
 //! `air-temperature-3fa2b1c0`); names are free text (1–100 characters, no control
 //! characters) and never reach a path. Ids given to [`Store::get`] and friends are looked up
 //! in the in-memory index only.
+//!
+//! Uploaded art maps are kept in `artmaps/` (see [`Store::save_art_map`]).
+
+mod artmaps;
+
+pub use artmaps::StoredArtMap;
 
 use std::collections::{BTreeMap, HashSet};
 use std::fs::{self, File};
