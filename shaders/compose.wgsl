@@ -172,10 +172,13 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     }
     var base: vec3<f32>;
     if textureLoad(albedo_tex, p, 0).a > 0.5 {
-        let t = data_tone(data_at(p), blurred_tone(p, size));
-        // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
-        ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
-        ink = max(ink, silhouette_ink(p, t, size));
+        // The tone is only needed for strokes (a photorealistic style draws none).
+        if post.hatch.x > 0.0 || post.silhouette.z > 0.0 {
+            let t = data_tone(data_at(p), blurred_tone(p, size));
+            // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
+            ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
+            ink = max(ink, silhouette_ink(p, t, size));
+        }
         base = mix(post.paper.rgb, encode_srgb(surface_color(p)), post.color.x);
     } else {
         base = mix(post.paper.rgb, sky_color(frag.xy, size), post.color2.y);
