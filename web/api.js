@@ -24,18 +24,21 @@ export async function errorOf(response) {
   return new ApiError(response.status, detail?.code ?? 'http', message, detail?.parameter);
 }
 
-/** Fetches `path` and returns its JSON; throws an `ApiError` for an error status. */
-export async function getJSON(path, init) {
+/** Fetches `path`; throws an `ApiError` for an error status. */
+async function request(path, init) {
   const response = await fetch(path, init);
   if (!response.ok) throw await errorOf(response);
-  return response.json();
+  return response;
+}
+
+/** Fetches `path` and returns its JSON; throws an `ApiError` for an error status. */
+export async function getJSON(path, init) {
+  return (await request(path, init)).json();
 }
 
 /** Fetches `path` and returns the response as a Blob; throws an `ApiError` for an error status. */
 export async function getBlob(path) {
-  const response = await fetch(path);
-  if (!response.ok) throw await errorOf(response);
-  return response.blob();
+  return (await request(path)).blob();
 }
 
 /** Uploads a data layer as a multipart form (`POST /api/layers`); returns the layer's metadata. */
@@ -45,6 +48,15 @@ export async function uploadLayer(form) {
 
 /** Deletes a data layer (`DELETE /api/layers/{id}`). */
 export async function deleteLayer(id) {
-  const response = await fetch(`/api/layers/${encodeURIComponent(id)}`, { method: 'DELETE' });
-  if (!response.ok) throw await errorOf(response);
+  await request(`/api/layers/${encodeURIComponent(id)}`, { method: 'DELETE' });
+}
+
+/** Replaces art map `index` of `kind` (`tam`/`sam`), or adds one at the count, from a PNG (`PUT /api/artmaps/{kind}/{index}`). */
+export async function putArtMap(kind, index, png) {
+  return getJSON(`/api/artmaps/${kind}/${index}`, { method: 'PUT', headers: { 'Content-Type': 'image/png' }, body: png });
+}
+
+/** Restores a generated art map or removes the last added one (`DELETE /api/artmaps/{kind}/{index}`). */
+export async function deleteArtMap(kind, index) {
+  await request(`/api/artmaps/${kind}/${index}`, { method: 'DELETE' });
 }

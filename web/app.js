@@ -2,6 +2,7 @@
 // and the page's address always holds the view as `GET /api/render` parameters.
 
 import { ApiError, deleteLayer, getBlob, getJSON } from './api.js';
+import { ArtMapsPanel } from './artmaps.js';
 import { Connection } from './connection.js';
 import { DataPanel } from './data-panel.js';
 import { cameraMessage, dataMessage, defaultView, fromQuery, pageLink, renderUrl, styleMessage, toQuery } from './link.js';
@@ -57,6 +58,7 @@ function sessionUrl() {
 /** Marks parts of the view as changed; they are sent once per animation frame. */
 function changed(...parts) {
   for (const part of parts) app.dirty.add(part);
+  if (parts.includes('style')) app.art?.showChosen();
   if (app.flushing == null) app.flushing = requestAnimationFrame(flush);
   scheduleLink();
 }
@@ -264,7 +266,22 @@ function setupStyle() {
     changed('style');
   });
   refresh();
-  app.styles = { refresh };
+  app.styles = {
+    refresh,
+    /** The edited style's value of field `name`. */
+    get: (name) => model.styleOf(app.view, target.value)[name],
+    /** Sets field `name` of the edited style. */
+    set: (name, value) => {
+      model.set(app.view, target.value, name, value);
+      refresh();
+      changed('style');
+    },
+  };
+}
+
+function setupArt() {
+  app.art = new ArtMapsPanel({ chosen: app.styles.get, onChoose: app.styles.set });
+  app.art.refresh();
 }
 
 async function refreshLayers(data) {
@@ -398,6 +415,7 @@ function setupConnection() {
   connection.addEventListener('data', (e) => app.data?.showWarnings(e.detail.warnings ?? []));
   connection.addEventListener('frame', (e) => drawFrame(e.detail));
   connection.addEventListener('stats', (e) => showStats(e.detail));
+  connection.addEventListener('art_maps', () => app.art?.refresh());
   connection.addEventListener('error', (e) => serverError(e.detail));
   $('reconnect').addEventListener('click', () => connection.connect());
   window.addEventListener('online', () => connection.connect());
@@ -427,6 +445,7 @@ async function main() {
   setupTabs();
   setupStyle();
   setupData(openapi);
+  setupArt();
   setupViewer();
   setupConnection();
   updateLink();

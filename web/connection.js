@@ -43,7 +43,8 @@ export function backoffDelay(attempt, random = Math.random) {
 /**
  * A session that reconnects by itself. Events: `status` (detail: `{state, delayMs?, attempt?}`
  * with state `connecting`, `open`, `waiting`), `hello`, `frame` (detail: `{meta, header,
- * bitmap, latencyMs}`), `data` (the answer to a `data` control: time and warnings), `error`
+ * bitmap, latencyMs}`), `data` (the answer to a `data` control: time and warnings), `art_maps` (the server's art
+ * maps changed: their counts; a new frame follows), `error`
  * (a server `error` message), `stats`.
  */
 export class Connection extends EventTarget {
@@ -148,7 +149,8 @@ export class Connection extends EventTarget {
         this.pendingMeta = message;
         break;
       case 'data':
-        this.dispatchEvent(new CustomEvent('data', { detail: message }));
+      case 'art_maps':
+        this.dispatchEvent(new CustomEvent(message.type, { detail: message }));
         break;
       case 'pong':
         this.pong(message.id);

@@ -119,6 +119,11 @@ async function pixels(page) {
   });
 }
 
+/** Mean grey level of a frame (0…255): lower is more ink. */
+function brightness(p) {
+  return p.grey.reduce((sum, v) => sum + v, 0) / p.grey.length;
+}
+
 /** Mean absolute grey-level difference of two frames (0…255). */
 function difference(a, b) {
   return a.grey.reduce((sum, v, i) => sum + Math.abs(v - b.grey[i]), 0) / a.grey.length;
@@ -147,6 +152,35 @@ async function linked(page, name, accept, arg = null) {
 async function openPane(page, name) {
   await page.locator(`#tab-${name}`).click();
   await page.locator(`#pane-${name}`).waitFor({ state: 'visible' });
+}
+
+/** The visible controls that have no label (no `<label>`, `aria-label` or text). */
+async function unlabelled(page) {
+  return page.locator('input, select, button, output').evaluateAll((controls) => controls
+    .filter((c) => c.getClientRects().length && !c.labels?.length && !c.getAttribute('aria-label') && !c.textContent.trim())
+    .map((c) => c.outerHTML));
+}
+
+/** Mean grey level of a grey canvas (runs in the page). */
+function canvasMean(canvas) {
+  const data = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
+  let sum = 0;
+  for (let i = 0; i < data.length; i += 4) sum += data[i];
+  return sum / (data.length / 4);
+}
+
+/** Mean grey level of the art-map paint canvas. */
+async function paintBrightness(page) {
+  return page.locator('#art-canvas').evaluate(canvasMean);
+}
+
+/** Waits until the art-map list shows `kind` `index` with `source` (`generated` or `uploaded`). */
+async function artSource(page, kind, index, source) {
+  await page.waitForFunction(
+    ([k, i, s]) => document.querySelector(`#art-${k}s li.artmap[data-index="${i}"]`)?.dataset.source === s,
+    [kind, index, source],
+    { timeout: WAIT },
+  );
 }
 
 async function shot(page, name) {
@@ -186,10 +220,7 @@ try {
     const link = await page.locator('#link').inputValue();
     assert.match(link, /[?&]x=.*&yaw=/, `the view is in the link: ${link}`);
     await shot(page, 'viewer');
-    const unlabelled = await page.locator('input, select, button, output').evaluateAll((controls) => controls
-      .filter((c) => c.getClientRects().length && !c.labels?.length && !c.getAttribute('aria-label') && !c.textContent.trim())
-      .map((c) => c.outerHTML));
-    assert.deepEqual(unlabelled, [], 'every visible control has a label');
+    assert.deepEqual(await unlabelled(page), [], 'every visible control has a label');
   });
 
   await check('dragging changes the view', async () => {
@@ -268,6 +299,106 @@ try {
     await stillAfter(page, () => page.locator('#style-reset').click());
     await linked(page, 'layer_styles', (v) => v === null);
     await page.locator('#style-target').selectOption('');
+  });
+
+  await check('strokes painted into a TAM ink the next frame; reset restores it', async () => {
+    await openPane(page, 'art');
+    const tam = page.locator('#art-tams li.artmap[data-index="0"]');
+    await tam.waitFor({ timeout: WAIT });
+    assert.equal(await tam.getAttribute('data-source'), 'generated');
+    assert.equal(await tam.locator('button.choose').getAttribute('aria-pressed'), 'true', 'the style uses TAM 0');
+    await page.waitForFunction(() => [...document.querySelectorAll('#pane-art .artmap img')]
+      .every((img) => img.complete && img.naturalWidth > 0), null, { timeout: WAIT });
+    assert.equal(await tam.locator('img').evaluate((img) => img.naturalWidth), 1536, 'the TAM thumbnail is its strip');
+    assert.deepEqual(await unlabelled(page), [], 'every visible control of the art-map panel has a label');
+    await page.locator('#art-paint-map').selectOption('tam:0');
+    await page.locator('#art-paint-level').selectOption('0');
+    await page.locator('#art-brush').fill('24');
+    await page.locator('#art-canvas[data-map="tam:0"]').waitFor({ timeout: WAIT });
+    const blank = await paintBrightness(page);
+    const box = await page.locator('#art-canvas').boundingBox();
+    for (let row = 0; row < 5; row += 1) {
+      const y = box.y + box.height * (row + 0.5) / 5;
+      await page.mouse.move(box.x + 4, y);
+      await page.mouse.down();
+      for (let i = 1; i <= 10; i += 1) await page.mouse.move(box.x + 4 + (box.width - 8) * i / 10, y + 6 * Math.sin(i));
+      await page.mouse.up();
+    }
+    const painted = await paintBrightness(page);
+    assert.ok(painted < blank - 20, `the strokes show on the canvas: ${blank.toFixed(1)} → ${painted.toFixed(1)}`);
+    const before = await pixels(page);
+    await stillAfter(page, () => page.locator('#art-apply').click());
+    await artSource(page, 'tam', 0, 'uploaded');
+    const inked = await pixels(page);
+    assert.match(await page.locator('#art-paint-status').textContent(), /TAM 0 updated/);
+    assert.ok(difference(before, inked) > CHANGED, 'the painted TAM changed the picture');
+    assert.ok(brightness(inked) < brightness(before) - 1, `more ink: mean grey ${brightness(before).toFixed(1)} → ${brightness(inked).toFixed(1)}`);
+    // The canvas shows the stored map now, the strokes in it.
+    await page.waitForFunction(
+      ([source, level]) => Math.abs(new Function(`return (${source})`)()(document.getElementById('art-canvas')) - level) < 1,
+      [canvasMean.toString(), painted],
+      { timeout: WAIT },
+    );
+    await shot(page, 'art-maps');
+    await stillAfter(page, () => tam.locator('button.reset').click());
+    await artSource(page, 'tam', 0, 'generated');
+    assert.ok(difference(before, await pixels(page)) < CHANGED / 2, 'reset restores the picture');
+    assert.equal(await tam.locator('button.reset').count(), 0, 'nothing left to reset');
+  });
+
+  await check('strokes painted into one stroke style of a SAM change only that channel', async () => {
+    /** SAM 1 (the default `silhouette_map`) as decoded by the page's PNG codec: ink per channel. */
+    const channels = () => page.evaluate(async () => {
+      const { decodePng } = await import('/png.js');
+      const sam = (await decodePng(await (await fetch(`/api/artmaps/sam/1.png?t=${Date.now()}`)).arrayBuffer())).to(4);
+      const sums = [0, 0, 0, 0];
+      for (let i = 0; i < sam.data.length; i += 1) sums[i % 4] += sam.data[i];
+      return { sums, bytes: Array.from(sam.data) };
+    });
+    const original = await channels();
+    await page.locator('#art-sams li.artmap[data-index="1"] button', { hasText: 'Paint' }).click();
+    await page.locator('#art-canvas[data-map="sam:1"]').waitFor({ timeout: WAIT });
+    assert.ok(await page.locator('#art-channel-field').isVisible(), 'a SAM is painted per stroke style');
+    assert.ok(!(await page.locator('#art-level-field').isVisible()), 'tone levels are for TAMs');
+    await page.locator('#art-paint-channel').selectOption('1');
+    await page.locator('#art-brush').fill('6');
+    const box = await page.locator('#art-canvas').boundingBox();
+    await page.mouse.move(box.x + 4, box.y + box.height / 2);
+    await page.mouse.down();
+    for (let i = 1; i <= 10; i += 1) await page.mouse.move(box.x + 4 + (box.width - 8) * i / 10, box.y + box.height / 2);
+    await page.mouse.up();
+    await stillAfter(page, () => page.locator('#art-apply').click());
+    await artSource(page, 'sam', 1, 'uploaded');
+    const edited = await channels();
+    assert.ok(edited.sums[1] > original.sums[1], `more ink in G: ${original.sums[1]} → ${edited.sums[1]}`);
+    for (const c of [0, 2, 3]) {
+      assert.ok(edited.bytes.every((v, i) => i % 4 !== c || v === original.bytes[i]), `channel ${c} kept byte for byte`);
+    }
+    await stillAfter(page, () => page.locator('#art-sams li.artmap[data-index="1"] button.reset').click());
+    await artSource(page, 'sam', 1, 'generated');
+    assert.deepEqual((await channels()).sums, original.sums, 'reset restores the generated SAM');
+  });
+
+  await check('an invalid art map shows the server\'s message', async () => {
+    const uploadMap = async (file) => {
+      await page.locator('#art-upload-target').selectOption('tam:0');
+      await page.locator('#art-upload-file').setInputFiles(file);
+      await page.locator('#art-upload-status').evaluate((node) => {
+        node.dataset.kind = '';
+      });
+      await page.locator('#art-upload-submit').click();
+      await page.waitForFunction(() => ['ok', 'error'].includes(document.getElementById('art-upload-status').dataset.kind), null, { timeout: WAIT });
+      assert.equal(await page.locator('#art-upload-status').getAttribute('data-kind'), 'error');
+      return page.locator('#art-upload-status').textContent();
+    };
+    expected.push([step, '/api/artmaps/tam/0']);
+    const garbage = await uploadMap({ name: 'strokes.png', mimeType: 'image/png', buffer: Buffer.from('not a PNG at all\n') });
+    assert.match(garbage, /refused the map: art map tam\/0 is not a PNG file/, `the server's message: ${garbage}`);
+    // A real PNG of the wrong shape: a SAM strip offered as a TAM.
+    const sam = Buffer.from(await (await page.request.get(`${base}/api/artmaps/sam/0.png`)).body());
+    const shape = await uploadMap({ name: 'sam.png', mimeType: 'image/png', buffer: sam });
+    assert.match(shape, /is 256×32 pixels, expected a strip of 6 square tone images/, `the server's message: ${shape}`);
+    assert.equal(await page.locator('#art-tams li.artmap[data-index="0"]').getAttribute('data-source'), 'generated', 'nothing changed');
   });
 
   await check('an invalid upload shows the server\'s message', async () => {
