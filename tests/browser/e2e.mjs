@@ -89,6 +89,20 @@ async function nextStill(page, after) {
   return JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
 }
 
+/**
+ * Waits for a still frame after which no other frame arrives for a while: a session that just
+ * opened may follow its first still with the frames of controls the page sends on `hello`.
+ */
+async function settledStill(page) {
+  let camera = await nextStill(page, 0);
+  for (;;) {
+    const id = await frameId(page);
+    await page.waitForTimeout(600);
+    if ((await frameId(page)) === id) return camera;
+    camera = await nextStill(page, id);
+  }
+}
+
 /** Runs `action` and waits for the still frame it causes. */
 async function stillAfter(page, action) {
   const before = await frameId(page);
@@ -467,7 +481,7 @@ try {
     const shown = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
     const other = watch(await context.newPage());
     await other.goto(link);
-    const opened = await nextStill(other, 0);
+    const opened = await settledStill(other);
     for (let i = 0; i < 3; i += 1) {
       assert.ok(Math.abs(opened.position[i] - shown.position[i]) < 0.01, `position ${i}: ${shown.position} vs ${opened.position}`);
     }
