@@ -179,7 +179,10 @@ impl Shared {
     /// Blocks until a job is available; `None` once the pool is closed and drained. Also
     /// returns the sessions that ended meanwhile. Waiting art-map changes go to `apply_art`
     /// first (outside the lock), so a frame sees every change made before it was taken.
-    fn next_job(&self, mut apply_art: impl FnMut(ArtJob)) -> Option<(Job, Vec<u64>)> {
+    /// The next job and the sessions that ended since the last call; `(None, ended)` when
+    /// sessions ended and no job waits, so their view states are freed at once. `None` once
+    /// the pool is closed and drained.
+    fn next_job(&self, mut apply_art: impl FnMut(ArtJob)) -> Option<(Option<Job>, Vec<u64>)> {
         let mut queue = self.lock();
         loop {
             if let Some(art) = queue.art.pop_front() {
@@ -190,7 +193,10 @@ impl Shared {
             }
             if let Some(job) = queue.pop() {
                 self.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
-                return Some((job, std::mem::take(&mut queue.left)));
+                return Some((Some(job), std::mem::take(&mut queue.left)));
+            }
+            if !queue.left.is_empty() {
+                return Some((None, std::mem::take(&mut queue.left)));
             }
             if queue.closed {
                 return None;
@@ -335,10 +341,11 @@ fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handl
     let mut layers = LayerCache::default();
     loop {
         let next = shared.next_job(|job| apply_art(renderer, job));
-        let Some((Job { view, kind, session, reply }, left)) = next else { break };
+        let Some((job, left)) = next else { break };
         for id in left {
             views.remove(&id);
         }
+        let Some(Job { view, kind, session, reply }) = job else { continue };
         if reply.is_closed() {
             continue; // the client left while the job waited
         }
@@ -439,5 +446,7 @@ impl Drop for SessionLane {
         queue.sessions.remove(&self.id);
         queue.left.push(self.id);
         self.shared.metrics.queue_depth.set(i64::try_from(queue.depth()).unwrap_or(i64::MAX));
+        // Wake an idle worker so it frees the session's view state now.
+        self.shared.wake.notify_all();
     }
 }
