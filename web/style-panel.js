@@ -6,6 +6,8 @@
 
 /** Fields shown first, open: the style axes of issue #8 where the schema has them. */
 const MAIN = [
+  // with "Style of" set to a vegetation layer: show or hide that layer (existing / planned)
+  'visible',
   'photorealism',
   'hlp_abstraction',
   'leaf_size',

@@ -315,6 +315,17 @@ try {
     await page.locator('#style-target').selectOption('');
   });
 
+  await check('a vegetation layer can be hidden', async () => {
+    const before = await pixels(page);
+    await page.locator('#style-target').selectOption('existing');
+    await stillAfter(page, () => page.locator('#style-visible').uncheck());
+    assert.ok(difference(before, await pixels(page)) > CHANGED, 'the existing plants disappeared');
+    await linked(page, 'layer_styles', (v) => v === JSON.stringify({ existing: { visible: false } }));
+    await stillAfter(page, () => page.locator('#style-reset').click());
+    await linked(page, 'layer_styles', (v) => v === null);
+    await page.locator('#style-target').selectOption('');
+  });
+
   await check('strokes painted into a TAM ink the next frame; reset restores it', async () => {
     await openPane(page, 'art');
     const tam = page.locator('#art-tams li.artmap[data-index="0"]');
