@@ -87,6 +87,24 @@ fn sibling(reference: &Path, suffix: &str) -> PathBuf {
 /// pixels are outliers. On failure the actual image and a diff image (outliers red) are
 /// written to `$TMPDIR/landsketch-test-images/` and named in the panic message.
 /// `LANDSKETCH_UPDATE_REFERENCES=1` rewrites the reference instead.
+/// The share of pixels of `actual` that differ from `expected` (same size) by more than
+/// [`PIXEL_TOLERANCE`] in a channel, and a diff image (outliers red, the rest grey by difference).
+pub fn outliers(actual: &RgbaImage, expected: &RgbaImage) -> (f64, RgbaImage) {
+    let mut diff = RgbaImage::new(actual.width(), actual.height());
+    let mut count = 0usize;
+    for ((a, e), d) in actual.pixels().zip(expected.pixels()).zip(diff.pixels_mut()) {
+        let worst = (0..3).map(|c| a[c].abs_diff(e[c])).max().unwrap_or(0);
+        *d = if worst > PIXEL_TOLERANCE {
+            count += 1;
+            image::Rgba([255, 0, 0, 255])
+        } else {
+            let g = 255 - worst * 3;
+            image::Rgba([g, g, g, 255])
+        };
+    }
+    (count as f64 / f64::from(actual.width() * actual.height()), diff)
+}
+
 pub fn assert_matches_reference(actual: &RgbaImage, reference: &Path, max_outlier_fraction: f64) {
     if std::env::var_os("LANDSKETCH_UPDATE_REFERENCES").is_some() {
         actual.save(reference).expect("write reference");
@@ -98,19 +116,7 @@ pub fn assert_matches_reference(actual: &RgbaImage, reference: &Path, max_outlie
         })
         .to_rgba8();
     assert_eq!(expected.dimensions(), actual.dimensions(), "image size differs from {}", reference.display());
-    let mut diff = RgbaImage::new(actual.width(), actual.height());
-    let mut outliers = 0usize;
-    for ((a, e), d) in actual.pixels().zip(expected.pixels()).zip(diff.pixels_mut()) {
-        let worst = (0..3).map(|c| a[c].abs_diff(e[c])).max().unwrap_or(0);
-        *d = if worst > PIXEL_TOLERANCE {
-            outliers += 1;
-            image::Rgba([255, 0, 0, 255])
-        } else {
-            let g = 255 - worst * 3;
-            image::Rgba([g, g, g, 255])
-        };
-    }
-    let share = outliers as f64 / f64::from(actual.width() * actual.height());
+    let (share, diff) = outliers(actual, &expected);
     if share > max_outlier_fraction {
         let (actual_path, diff_path) = (sibling(reference, "actual"), sibling(reference, "diff"));
         std::fs::create_dir_all(actual_path.parent().expect("temp dir")).expect("create output dir");
