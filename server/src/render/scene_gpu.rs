@@ -9,7 +9,7 @@ use super::gbuffer::{
 };
 use super::{Gpu, RenderError};
 use crate::prep::cache::{DiskCache, KeyBuilder};
-use crate::prep::hlp::{self, Sphere};
+use crate::prep::hlp::{self, Hlps, Sphere};
 use crate::prep::lod::{self, Atlas, Billboard, LodLevel, LodSettings};
 use crate::scene::Scene;
 use crate::scene::camera::Camera;
@@ -296,22 +296,11 @@ impl SceneGpu {
         let terrain = up.mesh(&scene.terrain.mesh, None, &terrain_material, Surface::Terrain);
         let baker = Baker::new(device, &pass.material_layout);
         let mut species = Vec::with_capacity(scene.species.len());
-        let mut hlp_counts = Vec::with_capacity(scene.species.len());
         let mut plant_boards = Vec::with_capacity(scene.species.len());
         for s in &scene.species {
             let hlps = hlp::cluster_cached(&s.model, s.hlp_radius, disk);
             let board = Billboard::of_model(&s.model);
-            species.push(Self::upload_species(
-                gpu,
-                &mut up,
-                &baker,
-                &s.model,
-                s.hlp_radius,
-                &hlps.spheres,
-                board,
-                disk,
-            )?);
-            hlp_counts.push(hlps.spheres.len());
+            species.push(Self::upload_species(gpu, &mut up, &baker, &s.model, s.hlp_radius, &hlps, board, disk)?);
             plant_boards.push((hlps, board));
         }
 
@@ -347,7 +336,7 @@ impl SceneGpu {
         info!(
             species = species.len(),
             plants = plants.len(),
-            hlps = hlp_counts.iter().sum::<usize>(),
+            hlps = plant_boards.iter().map(|(hlps, _)| hlps.spheres.len()).sum::<usize>(),
             source_triangles,
             "scene uploaded"
         );
@@ -381,11 +370,11 @@ impl SceneGpu {
         baker: &Baker,
         model: &PlantModel,
         hlp_radius: f32,
-        spheres: &[Sphere],
+        hlps: &Hlps,
         plant_board: Billboard,
         disk: Option<&DiskCache>,
     ) -> Result<SpeciesGpu, RenderError> {
-        let hlps = hlp::cluster_cached(model, hlp_radius, disk);
+        let spheres = hlps.spheres.as_slice();
         // Level 0: the model, foliage split and sorted by HLP so each HLP can be baked alone.
         let mut full = Vec::new();
         let mut hlp_ranges = Vec::new();
