@@ -4,7 +4,9 @@
 // shaded surface colour and the sky. Every pixel uses the style of its layer (thesis 8.2.8); a
 // compose pass draws the style slots of its art-map group (`styles.frame_info.x`) and discards
 // the rest. Data layers (thesis 9.3) adjust tone, TAM, SAM channel, silhouettes and colour
-// through `data_common.wgsl` (binding 11).
+// and add coloured hatchings through `data_common.wgsl` (bindings 11, 12): the surface colour
+// or paper, with the style's ink over it, is multiplied by the data's colour tint and by the
+// hatch colours' inks.
 
 @group(0) @binding(1) var contour_tex: texture_2d<f32>;
 @group(0) @binding(2) var depth_tex: texture_2d<f32>;
@@ -60,22 +62,21 @@ fn blurred_tone(p: vec2<i32>, size: vec2<u32>) -> f32 {
     return sum / weight;
 }
 
-// Tonal art map lookup (Praun et al., thesis 6.1): the darkness 1 - t is placed between the
-// two tone levels whose mean darkness brackets it (level i of n aims at 0.1 + 0.8 i / (n - 1),
-// `artmaps::tone_target`; below level 0 it fades to paper) and the two are blended; the mip
-// level follows the texture's tiles per pixel so strokes keep their width on screen. Returns
-// ink coverage 0..1.
-fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
-    if post.hatch.x <= 0.0 {
-        return 0.0;
-    }
-    let levels = i32(post.tone2.z);
-    let base = data_tam_layer(data_at(p), levels);
-    let coords = textureLoad(hatch_tex, p, 0).xy;
+// The TAM mip level at pixel p: it follows the texture's tiles per pixel so strokes keep their
+// width on screen.
+fn tam_lod(p: vec2<i32>) -> f32 {
     let tiles_per_px = textureLoad(normal_tex, p, 0).w;
-    let lod = log2(max(tiles_per_px * post.tone2.w, 1e-4));
+    return log2(max(tiles_per_px * post.tone2.w, 1e-4));
+}
+
+// Tonal art map lookup (Praun et al., thesis 6.1) at hatch coordinates `coords` in the TAM whose
+// first tone level is array layer `base`: the darkness is placed between the two tone levels
+// whose mean darkness brackets it (level i of n aims at 0.1 + 0.8 i / (n - 1),
+// `artmaps::tone_target`; below level 0 it fades to paper) and the two are blended. Returns ink
+// coverage 0..1.
+fn tam_ink(coords: vec2<f32>, base: i32, darkness: f32, lod: f32) -> f32 {
+    let levels = i32(post.tone2.z);
     let step = 0.8 / f32(levels - 1);
-    let darkness = 1.0 - t;
     let position = select((darkness - 0.1) / step, darkness / 0.1 - 1.0, darkness < 0.1);
     let lo = i32(floor(position));
     let f = position - floor(position);
@@ -84,7 +85,48 @@ fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
         a = textureSampleLevel(tam, tam_sampler, coords, base + min(lo, levels - 1), lod).r;
     }
     let b = textureSampleLevel(tam, tam_sampler, coords, base + clamp(lo + 1, 0, levels - 1), lod).r;
-    return (1.0 - mix(a, b, f)) * post.hatch.x;
+    return 1.0 - mix(a, b, f);
+}
+
+// Hatching of tone t (1 = white) with the pixel's TAM (its style's, or a hatch-pattern
+// mapping's), by the hatch strength.
+fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
+    if post.hatch.x <= 0.0 {
+        return 0.0;
+    }
+    let base = data_tam_layer(data_at(p), i32(post.tone2.z));
+    return tam_ink(textureLoad(hatch_tex, p, 0).xy, base, 1.0 - t, tam_lod(p)) * post.hatch.x;
+}
+
+// The filter of one hatch-colour slot: strokes of the slot's darkness from the TAM at `base`,
+// at the hatch coordinates rotated by the slot's angle, in the slot's ink at its opacity; 1
+// (white) off the strokes.
+fn hatch_color_filter(slot: HatchColor, darkness: f32, coords: vec2<f32>, base: i32, lod: f32) -> vec3<f32> {
+    if darkness <= 0.0 || slot.color.a <= 0.0 {
+        return vec3<f32>(1.0);
+    }
+    let r = slot.rotation.xy;
+    let rotated = vec2<f32>(r.x * coords.x - r.y * coords.y, r.y * coords.x + r.x * coords.y);
+    return mix(vec3<f32>(1.0), slot.color.rgb, tam_ink(rotated, base, darkness, lod) * slot.color.a);
+}
+
+// Thesis 9.2.2, Fig. 9.3: several fields with equal visual importance as hatchings of different
+// colours. Each hatch-colour slot draws the TAM of the pixel's style at its own darkness and
+// stroke direction in its ink over the sketch. The inks multiply like transparent inks, so the
+// result does not depend on the slots' order and no field hides another (crossing strokes
+// darken); the style's hatch strength and brightness do not apply (the data stay visible in any
+// style).
+fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
+    let darkness = data_hatch_darkness(data_at(p));
+    if all(darkness <= vec3<f32>(0.0)) {
+        return rgb;
+    }
+    let coords = textureLoad(hatch_tex, p, 0).xy;
+    let lod = tam_lod(p);
+    let base = i32(post.color2.z) * i32(post.tone2.z);
+    return rgb * hatch_color_filter(hatch_colors.slots[0], darkness.x, coords, base, lod)
+        * hatch_color_filter(hatch_colors.slots[1], darkness.y, coords, base, lod)
+        * hatch_color_filter(hatch_colors.slots[2], darkness.z, coords, base, lod);
 }
 
 // Thesis 5.2: stylized silhouettes. Search from the pixel along E (the screen projection of the
@@ -125,6 +167,12 @@ fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     return texel[channel] * post.silhouette.z * data_silhouettes(data_at(p));
 }
 
+// Ink of a leaf outline (thesis eq. 4.1): the G-buffer pass marks outline texels of leaves with
+// albedo alpha 0.75 (`OUTLINE_ALPHA` in gbuffer.wgsl) instead of 1.
+fn outline_ink(albedo_alpha: f32) -> f32 {
+    return saturate((1.0 - albedo_alpha) * 4.0);
+}
+
 // Linear RGB to the sRGB encoding of the output (the paper, ink and sky colours are sRGB).
 fn encode_srgb(c: vec3<f32>) -> vec3<f32> {
     let x = saturate(c);
@@ -133,14 +181,16 @@ fn encode_srgb(c: vec3<f32>) -> vec3<f32> {
 
 // Thesis 6.2: the surface colour, linear RGB. The albedo (already blended towards the
 // material's average colour in the G-buffer pass) with its saturation, lit by Lambert light
-// with ambient from the HLP-blended normal (thesis 6.1.3); optionally banded by a 1D toon ramp
+// with ambient from the HLP-blended normal (thesis 6.1.3; the ambient term darkened by k_a of
+// the implicit-surface illumination, Luft et al. 2007); optionally banded by a 1D toon ramp
 // of `toon_levels` flat bands (Campos et al. 2004) and blended towards Gooch cool-to-warm
 // shading, k_cool = (0, 0, 0.4) + 0.2·k_d, k_warm = (0.4, 0.4, 0) + 0.6·k_d (Gooch et al. 1998).
 fn surface_color(p: vec2<i32>) -> vec3<f32> {
     let albedo = textureLoad(albedo_tex, p, 0).rgb;
     let c = max(mix(vec3<f32>(dot(albedo, LUMA)), albedo, post.color.y), vec3<f32>(0.0));
-    let ndl = dot(normalize(textureLoad(normal_tex, p, 0).xyz), post.light.xyz);
-    let smooth_light = post.light.w + (1.0 - post.light.w) * max(ndl, 0.0);
+    let light = light_from_normal(textureLoad(normal_tex, p, 0).xyz);
+    let smooth_light = light.x;
+    let ndl = light.y;
     let bands = post.color2.x;
     let ramp = min(floor(smooth_light * bands), bands - 1.0) / (bands - 1.0);
     let lit = c * mix(smooth_light, ramp, post.color.w);
@@ -171,7 +221,9 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
         ink = contour_ink(p, size) * post.tone.w;
     }
     var base: vec3<f32>;
-    if textureLoad(albedo_tex, p, 0).a > 0.5 {
+    let coverage = textureLoad(albedo_tex, p, 0).a;
+    if coverage > 0.5 {
+        ink = max(ink, outline_ink(coverage));
         // The tone is only needed for strokes (a photorealistic style draws none).
         if post.hatch.x > 0.0 || post.silhouette.z > 0.0 {
             let t = data_tone(data_at(p), blurred_tone(p, size));
@@ -183,5 +235,5 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     } else {
         base = mix(post.paper.rgb, sky_color(frag.xy, size), post.color2.y);
     }
-    return vec4<f32>(data_tint(data_at(p), mix(base, post.ink.rgb, ink)), 1.0);
+    return vec4<f32>(hatch_colors_over(p, data_tint(data_at(p), mix(base, post.ink.rgb, ink))), 1.0);
 }

@@ -22,15 +22,15 @@ fn contour(p: vec2<i32>) -> f32 {
     return edge;
 }
 
-// Thesis 6.1.3: Lambert light from the (HLP-blended) normal with ambient light, darkened by the
-// albedo, contrast about L_ref (eq. 6.7: L' = (L - L_ref) scale + L_ref) and optional banding.
+// Thesis 6.1.3: Lambert light from the (HLP-blended) normal with ambient light (scaled by k_a of
+// the implicit-surface illumination, Luft et al. 2007), darkened by the albedo, contrast about
+// L_ref (eq. 6.7: L' = (L - L_ref) scale + L_ref) and optional banding.
 fn tone(p: vec2<i32>) -> f32 {
     let albedo = textureLoad(albedo_tex, p, 0);
     if albedo.a < 0.5 {
         return 1.0;
     }
-    let n = normalize(textureLoad(normal_tex, p, 0).xyz);
-    let light = post.light.w + (1.0 - post.light.w) * max(dot(n, post.light.xyz), 0.0);
+    let light = light_from_normal(textureLoad(normal_tex, p, 0).xyz).x;
     let lum = sqrt(dot(albedo.rgb, vec3<f32>(0.2126, 0.7152, 0.0722)));
     let l = light * mix(1.0, lum, post.tone.x);
     var t = saturate((l - post.tone.z) * post.tone.y + post.tone.z);

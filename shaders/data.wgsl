@@ -6,13 +6,17 @@
 //   x  colour tint, RGBA8: the sketch is multiplied by rgb (white: unchanged)
 //   y  hatch tone and its weight, unorm16 each: t' = mix(t, tone, weight)
 //   z  TAM index (bits 0–7) and SAM channel + 1 (bits 8–15; 0 = chosen by tone)
-//   w  1 where silhouettes are drawn, 0 where silhouette density drops them
+//   w  bit 0: 1 where silhouettes are drawn, 0 where silhouette density drops them;
+//      bits 8–15, 16–23, 24–31: darkness (unorm8) of the coloured hatching of slots 0, 1, 2
+//      (hatch colour, thesis 9.2.2, Fig. 9.3; 0 = none). The slots' inks and stroke
+//      directions are a uniform of the compose pass (`HatchColors`, `render::projection`).
 
 struct Slot {
     // u = a·x + b, v = c·y + d: scene metres → field texture (`FieldGrid::uv_transform`)
     uv: vec4<f32>,
     // x: target (0 none, 1 colour, 2 hatch tone, 3 hatch pattern, 4 silhouette style,
-    // 5 silhouette density), y: 1 label / 0 scalar, z: u_t of eq. 9.4, w: opacity
+    // 5 silhouette density, 6 hatch colour), y: 1 label / 0 scalar, z: u_t of eq. 9.4,
+    // w: opacity
     params: vec4<f32>,
     // x, y: values at the two ends of the range (scalars); z: label classes; w: 1 reversed
     range: vec4<f32>,
@@ -140,10 +144,12 @@ struct Features {
     tam: u32,
     sam: u32,
     keep: u32,
+    // darkness of the coloured hatching of each slot
+    hatch: vec3<f32>,
 };
 
-// Applies one slot's value to the features (Table 9.1 targets).
-fn apply(slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: ptr<function, Features>) {
+// Applies the value of slot `index` to the features (Table 9.1 targets).
+fn apply(index: u32, slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: ptr<function, Features>) {
     if v < NO_VALUE {
         return;
     }
@@ -170,6 +176,10 @@ fn apply(slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: ptr<function,
             let keep = f32(hash(object) & 0xffffu) / 65535.0 < n * slot.params.w + (1.0 - slot.params.w);
             (*f).keep = select(0u, 1u, keep);
         }
+        case 6u: {
+            // Thesis 9.2.2, Fig. 9.3: high values hatch darkly in the slot's own ink.
+            (*f).hatch[index] = n;
+        }
         default: {}
     }
 }
@@ -179,14 +189,15 @@ fn fs_data(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<u32> {
     let p = vec2<i32>(frag.xy);
     // Without a hatch-pattern mapping a pixel keeps the TAM of its layer's style (thesis 8.2.8).
     let own_tam = u32(styles.slots[style_slot(textureLoad(id_tex, p, 0).x)].color2.z);
-    var f = Features(vec3<f32>(1.0), vec2<f32>(0.0), own_tam, 0u, 1u);
+    var f = Features(vec3<f32>(1.0), vec2<f32>(0.0), own_tam, 0u, 1u, vec3<f32>(0.0));
     let depth = textureLoad(depth_tex, p, 0).r;
     if depth < BACKGROUND {
         let world = world_position(frag.xy, depth);
         let object = textureLoad(id_tex, p, 0).x;
-        apply(data.slots[0], lut0, field_value(data.slots[0], lower0, upper0, world), object, &f);
-        apply(data.slots[1], lut1, field_value(data.slots[1], lower1, upper1, world), object, &f);
-        apply(data.slots[2], lut2, field_value(data.slots[2], lower2, upper2, world), object, &f);
+        apply(0u, data.slots[0], lut0, field_value(data.slots[0], lower0, upper0, world), object, &f);
+        apply(1u, data.slots[1], lut1, field_value(data.slots[1], lower1, upper1, world), object, &f);
+        apply(2u, data.slots[2], lut2, field_value(data.slots[2], lower2, upper2, world), object, &f);
     }
-    return vec4<u32>(pack4x8unorm(vec4<f32>(f.tint, 1.0)), pack2x16unorm(f.tone), f.tam | (f.sam << 8u), f.keep);
+    let w = pack4x8unorm(vec4<f32>(0.0, f.hatch)) | f.keep;
+    return vec4<u32>(pack4x8unorm(vec4<f32>(f.tint, 1.0)), pack2x16unorm(f.tone), f.tam | (f.sam << 8u), w);
 }

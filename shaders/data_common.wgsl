@@ -1,8 +1,23 @@
 // Data layers (thesis 9.3) as the compose pass reads them: one Rgba32Uint texel per pixel
 // written by the projection pass (`shaders/data.wgsl`, `render::projection`), or cleared to
-// "no data" (white tint, no tone weight, the style's TAM, silhouettes kept).
+// "no data" (white tint, no tone weight, the style's TAM, silhouettes kept, no coloured
+// hatching); and the hatch-colour slots (binding 12), which `ProjectionPass::encode` writes.
+
+// Thesis 9.2.2, Fig. 9.3: one hatch-colour slot (the mapping at that position of the view).
+struct HatchColor {
+    // rgb: ink colour (sRGB), a: opacity (0: the slot draws no coloured hatching)
+    color: vec4<f32>,
+    // x, y: cos and sin of the rotation of the hatch texture coordinates, which gives the
+    // slot's strokes their own direction
+    rotation: vec4<f32>,
+};
+
+struct HatchColors {
+    slots: array<HatchColor, 3>,
+};
 
 @group(0) @binding(11) var data_tex: texture_2d<u32>;
+@group(0) @binding(12) var<uniform> hatch_colors: HatchColors;
 
 fn data_at(p: vec2<i32>) -> vec4<u32> {
     return textureLoad(data_tex, p, 0);
@@ -27,7 +42,12 @@ fn data_sam_channel(d: vec4<u32>, by_tone: i32) -> i32 {
 
 // D3 silhouette density: 1 where the pixel's plant keeps its silhouettes.
 fn data_silhouettes(d: vec4<u32>) -> f32 {
-    return f32(d.w);
+    return f32(d.w & 1u);
+}
+
+// D4 hatch colours: the darkness 0..1 of the coloured hatching of slots 0, 1, 2 (0: none).
+fn data_hatch_darkness(d: vec4<u32>) -> vec3<f32> {
+    return unpack4x8unorm(d.w).yzw;
 }
 
 // D3 colour: the sketch multiplied by the colour maps' tint (ink stays dark, paper takes the

@@ -10,6 +10,12 @@ struct LayerStyle {
     hlp: vec4<f32>,
     // x: TAM tiles per π (m = n), y: surface function c (eq. 6.6), w: image-space tile (px)
     hatch: vec4<f32>,
+    // x: leaf mode (0 original, 1 billboard, 2 reoriented, 3 elliptical), y: leaf size,
+    // z: leaf shape (α_t from α_max to α_min, thesis 4.1), w: leaf outline Δα (eq. 4.1)
+    leaf: vec4<f32>,
+    // implicit-surface illumination (Luft et al. 2007): x blend towards the implicit normal
+    // (§3.3), y ambient occlusion (how much k_a of eq. 4 darkens the ambient light)
+    implicit: vec4<f32>,
 };
 
 const STYLE_SLOTS: u32 = 16u;
@@ -29,7 +35,9 @@ struct Frame {
 
 struct Material {
     base_color: vec4<f32>,
-    // x: alpha cutoff (< 0: opaque), y: part kind (0 terrain, 1 wood, 2 foliage)
+    // x: alpha cutoff (< 0: opaque; α_max for foliage), y: part kind (0 terrain, 1 wood,
+    // 2 foliage, 3 billboard), z: α_min of the leaf shape map (thesis 4.1; the cutoff for other
+    // kinds), w: scale of leaf particles drawn as a share of the leaves (SPEC P4)
     params: vec4<f32>,
     // average colour of the textured material, linear RGB (abstract colour, thesis 6.2)
     average_color: vec4<f32>,
@@ -43,6 +51,9 @@ struct Material {
 @group(1) @binding(2) var base_sampler: sampler;
 
 const NO_HLP: u32 = 0xffffffffu;
+// Albedo alpha of a leaf-outline texel (thesis eq. 4.1), which the compose pass draws in ink
+// (`outline_ink` in compose.wgsl); other geometry writes 1, the background 0.
+const OUTLINE_ALPHA: f32 = 0.75;
 const PI: f32 = 3.14159265;
 const WOOD_TILES: f32 = 4.0;
 const WOOD_TILE_HEIGHT: f32 = 1.5;
@@ -61,8 +72,16 @@ struct VertexIn {
     @location(7) object_id: u32,
     // per instance: first entry of its HLPs in `references`
     @location(8) reference_base: u32,
-    // per instance: screen-door range of a level-of-detail blend (all pixels: 0..1)
-    @location(9) lod_mask: vec2<f32>,
+    // per instance: xy screen-door range of a level-of-detail blend (all pixels: 0..1); zw a
+    // data layer's HLP abstraction for the plant and its weight (D3, see `plant_abstraction`)
+    @location(9) lod_mask: vec4<f32>,
+    // per instance: a far reference point (world centre, radius) replacing the HLP sphere in
+    // the parametrizations; radius 0: the plant's own HLPs (thesis 7.3)
+    @location(15) reference_sphere: vec4<f32>,
+    // foliage: the implicit surface's normal N_s scaled by the ambient coefficient k_a (Luft
+    // et al. eq. 4, §3.3), model space; billboards: the mean k_a of their leaves along z (only
+    // the length counts); zero for terrain and wood ("none")
+    @location(13) implicit: vec3<f32>,
 };
 
 struct VertexOut {
@@ -80,6 +99,13 @@ struct VertexOut {
     // object-space hatch coordinates for terrain (planar) and wood (cylindrical)
     @location(8) object_uv: vec2<f32>,
     @location(9) @interpolate(flat) lod_mask: vec2<f32>,
+    // the plant's own HLP sphere for billboard normals: centre in NDC, view depth, radius
+    @location(10) @interpolate(flat) own_sphere: vec4<f32>,
+    // leaf particles: xy the position in the particle, (±1, ±1) at its corners; z 1 for an
+    // elliptical leaf (0 otherwise, and for every mesh vertex)
+    @location(14) leaf: vec3<f32>,
+    // k_a·N_s in world space (zero: none)
+    @location(11) implicit: vec3<f32>,
 };
 
 fn rotate_z(v: vec3<f32>, cs: vec2<f32>) -> vec3<f32> {
@@ -123,6 +149,13 @@ fn hlp_blend(p: vec3<f32>, hlp: vec4<f32>, abstraction: f32) -> vec3<f32> {
     return mix(p, hlp.xyz + n / len * hlp.w, abstraction);
 }
 
+// The HLP abstraction 1 − f (eq. 4.8) of a plant: its layer style's, moved towards the value a
+// data layer maps onto abstraction at the plant's position by that mapping's weight (thesis
+// Table 9.1; `lod_mask.zw`, zero without such a mapping).
+fn plant_abstraction(object_id: u32, lod_mask: vec4<f32>) -> f32 {
+    return mix(layer_style(object_id).hlp.z, lod_mask.z, lod_mask.w);
+}
+
 fn view_depth(world: vec3<f32>) -> f32 {
     // Linear depth along the view axis, in metres (view space looks down -z).
     return -(frame.view * vec4<f32>(world, 1.0)).z;
@@ -131,11 +164,18 @@ fn view_depth(world: vec3<f32>) -> f32 {
 @vertex
 fn vs_main(in: VertexIn) -> VertexOut {
     // Leaves only: billboards (kind 3) already stand for their HLP sphere.
-    let abstraction = select(0.0, layer_style(in.object_id).hlp.z, u32(material.params.y) == 2u);
-    let world = to_world(hlp_blend(in.position, in.hlp, abstraction), in);
+    let abstraction = select(0.0, plant_abstraction(in.object_id, in.lod_mask), u32(material.params.y) == 2u);
+    return vertex_out(in, hlp_blend(in.position, in.hlp, abstraction));
+}
+
+// What the fragment shader needs of the vertex `in` placed at the model-space position `p`
+// (after HLP abstraction): shared by mesh vertices and leaf-particle corners.
+fn vertex_out(in: VertexIn, p: vec3<f32>) -> VertexOut {
+    let world = to_world(p, in);
     var out: VertexOut;
     out.clip = frame.view_proj * vec4<f32>(world, 1.0);
     out.normal = rotate_z(in.normal, in.rotation);
+    out.implicit = rotate_z(in.implicit, in.rotation);
     out.uv = in.uv;
     out.view_depth = view_depth(world);
     let kind = u32(material.params.y);
@@ -144,9 +184,15 @@ fn vs_main(in: VertexIn) -> VertexOut {
     out.ids = vec2<u32>(in.object_id, (kind << 24u) | patch_id);
     let center = to_world(in.hlp.xyz, in);
     out.hlp_normal = world - center;
-    out.hlp_clip = frame.view_proj * vec4<f32>(center, 1.0);
-    out.hlp_depth_radius = vec2<f32>(view_depth(center), in.hlp.w * in.offset_scale.w);
-    out.lod_mask = in.lod_mask;
+    // Thesis 7.3: far plants take their hatching and silhouette parametrization from a shared
+    // reference point; their normals still come from their own sphere.
+    let far = in.reference_sphere.w > 0.0;
+    let reference = select(vec4<f32>(center, in.hlp.w * in.offset_scale.w), in.reference_sphere, far);
+    out.hlp_clip = frame.view_proj * vec4<f32>(reference.xyz, 1.0);
+    out.hlp_depth_radius = vec2<f32>(view_depth(reference.xyz), reference.w);
+    let own_clip = frame.view_proj * vec4<f32>(center, 1.0);
+    out.own_sphere = vec4<f32>(own_clip.xy / own_clip.w, view_depth(center), in.hlp.w * in.offset_scale.w);
+    out.lod_mask = in.lod_mask.xy;
     out.reference_uv = vec2<f32>(0.0);
     if has_hlp {
         out.reference_uv = references[in.reference_base + in.hlp_index];
@@ -155,6 +201,103 @@ fn vs_main(in: VertexIn) -> VertexOut {
     // WOOD_TILE_HEIGHT metres up. (Terrain uses image-space coordinates, see fs_main.)
     let around = atan2(in.position.y, in.position.x) / (2.0 * PI) * WOOD_TILES;
     out.object_uv = vec2<f32>(around, in.position.z * in.offset_scale.w / WOOD_TILE_HEIGHT);
+    out.leaf = vec3<f32>(0.0);
+    return out;
+}
+
+// One corner of a leaf particle (`render::gbuffer::LeafVertex`, SPEC R1, R2) and its plant
+// instance (the per-instance attributes of `VertexIn`).
+struct LeafIn {
+    // leaf centre (model space)
+    @location(0) center: vec3<f32>,
+    // which corner: (s, t) in {-1, 1}²
+    @location(1) corner: vec2<f32>,
+    // the leaf's in-plane axes times their half sizes (texture u and v grow along them)
+    @location(2) axis_u: vec3<f32>,
+    @location(3) axis_v: vec3<f32>,
+    @location(4) normal: vec3<f32>,
+    @location(10) uv: vec2<f32>,
+    @location(11) hlp: vec4<f32>,
+    @location(12) hlp_index: u32,
+    // the share of the leaf rectangle its texture covers (an elliptical leaf keeps that area)
+    @location(13) coverage: f32,
+    // the leaf's implicit-surface illumination k_a·N_s, as `VertexIn.implicit`
+    @location(14) implicit: vec3<f32>,
+    @location(5) offset_scale: vec4<f32>,
+    @location(6) rotation: vec2<f32>,
+    @location(7) object_id: u32,
+    @location(8) reference_base: u32,
+    @location(9) lod_mask: vec4<f32>,
+    @location(15) reference_sphere: vec4<f32>,
+};
+
+// Leaf modes (`render::style::LeafMode`).
+const LEAF_BILLBOARD: u32 = 1u;
+const LEAF_REORIENTED: u32 = 2u;
+const LEAF_ELLIPTICAL: u32 = 3u;
+// Ratio of an elliptical leaf's long axis (along the HLP tangent) to its short axis.
+const ELLIPSE_ASPECT: f32 = 2.5;
+
+// The unit vector in the plane normal to the unit vector `n` closest to `v` (any one when `v`
+// is along `n`).
+fn in_plane(v: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let w = v - n * dot(v, n);
+    if length(w) > 1e-5 {
+        return normalize(w);
+    }
+    let a = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
+    return normalize(a - n * dot(a, n));
+}
+
+// Leaf particles (thesis 4.1–4.2, ch. 7; NPAR §4): one quad per leaf, placed about the leaf's
+// centre moved by the HLP abstraction (eq. 4.8–4.9) and sized by `leaf_size` and the share of
+// leaves drawn (`material.params.w`), turned per mode: facing the camera (billboard, SPEC R2),
+// with its normal along N_HLP = P − C pointing away from the HLP centre (eq. 4.7; thesis 4.2
+// "children book"), or as an ellipse tangent to the HLP sphere whose long axis runs around the
+// HLP's vertical axis ("Van Gogh", NPAR Fig. 3). The rest is the mesh vertices' `vertex_out`.
+@vertex
+fn vs_leaf(leaf: LeafIn) -> VertexOut {
+    let style = layer_style(leaf.object_id);
+    let center = hlp_blend(leaf.center, leaf.hlp, plant_abstraction(leaf.object_id, leaf.lod_mask));
+    let from_hlp = center - leaf.hlp.xyz;
+    let nh = select(leaf.normal, normalize(from_hlp), leaf.hlp.w > 0.0 && length(from_hlp) > 1e-6);
+    var half = vec2<f32>(length(leaf.axis_u), length(leaf.axis_v));
+    var a0 = leaf.axis_u / max(half.x, 1e-9);
+    var a1 = leaf.axis_v / max(half.y, 1e-9);
+    var n = leaf.normal;
+    // +1 when (u, v, normal) is right-handed: the leaf's index order keeps its front face on the
+    // normal's side, so turned quads keep the handedness.
+    let hand = select(-1.0, 1.0, dot(cross(leaf.axis_u, leaf.axis_v), leaf.normal) >= 0.0);
+    var ellipse = 0.0;
+    let mode = u32(style.leaf.x);
+    if mode == LEAF_BILLBOARD {
+        // The camera's right, up and backward axes (rows of the view matrix) in model space.
+        let inverse = vec2<f32>(leaf.rotation.x, -leaf.rotation.y);
+        let right = rotate_z(vec3<f32>(frame.view[0].x, frame.view[1].x, frame.view[2].x), inverse);
+        let up = rotate_z(vec3<f32>(frame.view[0].y, frame.view[1].y, frame.view[2].y), inverse);
+        let back = rotate_z(vec3<f32>(frame.view[0].z, frame.view[1].z, frame.view[2].z), inverse);
+        a0 = hand * right;
+        a1 = up;
+        n = select(-leaf.normal, leaf.normal, dot(leaf.normal, back) >= 0.0);
+    } else if mode == LEAF_REORIENTED {
+        n = nh;
+        a0 = in_plane(a0, nh);
+        a1 = hand * cross(nh, a0);
+    } else if mode == LEAF_ELLIPTICAL {
+        n = nh;
+        a0 = in_plane(vec3<f32>(-nh.y, nh.x, 0.0), nh);
+        a1 = hand * cross(nh, a0);
+        // Half axes a = k·b with π·a·b the area the leaf's texture covers in its rectangle.
+        let b = sqrt(4.0 * leaf.coverage * half.x * half.y / (PI * ELLIPSE_ASPECT));
+        half = vec2<f32>(ELLIPSE_ASPECT * b, b);
+        ellipse = 1.0;
+    }
+    let size = style.leaf.y * material.params.w;
+    let p = center + (a0 * half.x * leaf.corner.x + a1 * half.y * leaf.corner.y) * size;
+    let vertex = VertexIn(p, n, leaf.uv, leaf.hlp, leaf.hlp_index, leaf.offset_scale, leaf.rotation,
+        leaf.object_id, leaf.reference_base, leaf.lod_mask, leaf.reference_sphere, leaf.implicit);
+    var out = vertex_out(vertex, p);
+    out.leaf = vec3<f32>(leaf.corner, ellipse);
     return out;
 }
 
@@ -196,10 +339,9 @@ fn screen_door(frag: vec2<f32>) -> f32 {
 // The normal of a billboard pixel: the HLP sphere's normal behind it (thesis eq. 4.7 for the
 // sphere seen as an impostor), from the pixel's offset to the projected HLP centre.
 fn billboard_normal(frag: vec2<f32>, in: VertexOut) -> vec3<f32> {
-    let center_ndc = in.hlp_clip.xy / in.hlp_clip.w;
-    let center_px = (center_ndc * vec2<f32>(0.5, -0.5) + 0.5) * vec2<f32>(frame.viewport.z, frame.viewport.y);
-    let radius = max(in.hlp_depth_radius.y, 1e-4);
-    var o = (frag - center_px) * metres_per_px(in.hlp_depth_radius.x) / radius;
+    let center_px = (in.own_sphere.xy * vec2<f32>(0.5, -0.5) + 0.5) * vec2<f32>(frame.viewport.z, frame.viewport.y);
+    let radius = max(in.own_sphere.w, 1e-4);
+    var o = (frag - center_px) * metres_per_px(in.own_sphere.z) / radius;
     o = vec2<f32>(o.x, -o.y) / max(1.0, length(o));
     let view_normal = vec3<f32>(o, sqrt(max(0.0, 1.0 - dot(o, o))));
     // The view matrix is a rotation (plus translation): its transpose takes view to world.
@@ -220,9 +362,19 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // Area-based footprint: the geometric mean of the two axes, so grazing terrain keeps
     // crisp (foreshortened) strokes instead of the blur of the coarsest axis.
     let tiles_per_px = sqrt(length(dpdx(t)) * length(dpdy(t)));
-    if material.params.x >= 0.0 && texel.a < material.params.x {
+    // Thesis 4.1: the alpha threshold α_t moves from α_max (the original leaf) to α_min (the
+    // most abstract shape of the leaf shape map) with the leaf shape. `inside` is how far the
+    // texel lies inside the shape: α − α_t, or 1 − (s² + t²) on an elliptical leaf (the
+    // ellipse equation in the particle's coordinates).
+    let alpha_t = mix(material.params.x, material.params.z, style.leaf.z);
+    let elliptical = in.leaf.z > 0.5;
+    let inside = select(texel.a - alpha_t, 1.0 - dot(in.leaf.xy, in.leaf.xy), elliptical);
+    if material.params.x >= 0.0 && inside < 0.0 {
         discard;
     }
+    // Thesis eq. 4.1: leaf texels with α − α_t ≤ Δα are the leaf's outline, drawn in ink by
+    // the compose pass (albedo alpha OUTLINE_ALPHA instead of 1).
+    let outline = u32(material.params.y) == 2u && style.leaf.w > 0.0 && inside <= style.leaf.w;
     let dither = screen_door(frag.xy);
     if dither < in.lod_mask.x || dither >= in.lod_mask.y {
         discard;
@@ -230,6 +382,17 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     var n = normalize(in.normal);
     if !front {
         n = -n;
+    }
+    // Luft et al. 2007: foliage normals realigned to the implicit surface (§3.3,
+    // N' = mix(N, N_s)), and the ambient coefficient k_a (eq. 4) carried as the attribute's
+    // length; k_a' = mix(1, k_a, ambient_occlusion) goes into the G-buffer normal's length
+    // (the paper's encoding) for the post passes' ambient term.
+    let ka = length(in.implicit);
+    var ambient_k = 1.0;
+    if ka > 1e-4 {
+        let blended = mix(n, in.implicit / ka, style.implicit.x);
+        n = select(in.implicit / ka, normalize(blended), length(blended) > 1e-4);
+        ambient_k = max(mix(1.0, ka, style.implicit.y), 1e-3);
     }
     var e = vec2<f32>(0.0);
     var radius_px = 0.0;
@@ -246,8 +409,10 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     }
     var out: GBuffer;
     // Thesis 6.2: abstract colour, the texture blended towards the material's average colour.
-    out.albedo = vec4<f32>(mix(texel.rgb, material.average_color.rgb, style.hlp.w), 1.0);
-    out.normal = vec4<f32>(n, tiles_per_px);
+    // Elliptical leaves take the material's average colour: their shape is not the texture's.
+    let color = select(texel.rgb, material.average_color.rgb, elliptical);
+    out.albedo = vec4<f32>(mix(color, material.average_color.rgb, style.hlp.w), select(1.0, OUTLINE_ALPHA, outline));
+    out.normal = vec4<f32>(n * ambient_k, tiles_per_px);
     out.depth = vec2<f32>(in.view_depth, radius_px);
     out.ids = in.ids;
     out.hatch = vec4<f32>(t, e);

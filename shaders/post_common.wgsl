@@ -56,3 +56,13 @@ fn use_style(object_id: u32) {
 fn clamp_coord(p: vec2<i32>, size: vec2<u32>) -> vec2<i32> {
     return clamp(p, vec2<i32>(0), vec2<i32>(size) - 1);
 }
+
+// Light at a pixel from its G-buffer normal (thesis 6.1.3): ambient plus Lambert,
+// a + (1 − a)·max(N·L, 0), with the ambient term scaled by the normal's length, the ambient
+// coefficient k_a' of the implicit-surface illumination (Luft et al. 2007 eq. 1: I_a·k_a; eq. 4;
+// 1 where there is none). x: the light, y: N·L.
+fn light_from_normal(encoded: vec3<f32>) -> vec2<f32> {
+    let ka = length(encoded);
+    let ndl = dot(encoded / max(ka, 1e-6), post.light.xyz);
+    return vec2<f32>(post.light.w * ka + (1.0 - post.light.w) * max(ndl, 0.0), ndl);
+}

@@ -1,16 +1,21 @@
 //! Integration tests of the data-layer API (SPEC A2): real servers on loopback ports with the
-//! sample scene and a data directory of their own, exercised over HTTP (reqwest). Uploads are
+//! sample scene and a data directory of their own, exercised over HTTP (reqwest) and WebSocket
+//! `data` messages (tokio-tungstenite). Uploads are
 //! GeoTIFFs written here to cover the sample scene, and the ASCII-grid fixture
 //! `data/test/fields/ramp_scalar_4326.asc`, which lies south-west of it.
 
 mod common;
 
 use common::server::{TestServer, client, get, json_of, loaded};
+use futures_util::{SinkExt, StreamExt};
+use landsketch::api::ws::{FrameHeader, HEADER_LEN};
 use landsketch::fields::legend::{LEGEND_WIDTH, SCALAR_LEGEND_HEIGHT};
+use landsketch::fields::{ColorMapName, ColorMapSpec, Lut};
 use landsketch::gis::{Crs, GeoTransform, Raster, write_geotiff_f32};
 use reqwest::StatusCode;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
+use tokio_tungstenite::tungstenite::Message;
 
 async fn upload(server: &TestServer, query: &str, body: Vec<u8>) -> reqwest::Response {
     client().post(server.url(&format!("/api/layers?{query}"))).body(body).send().await.expect("POST")
@@ -172,7 +177,16 @@ async fn upload_list_get_legends_and_delete() {
         json_of(get(&server.url(&format!("/api/layers/{id}/legend.json?colormap=magma&range=0,20"))).await).await;
     assert_eq!((magma["colormap"].as_str(), &magma["range"]), (Some("magma"), &serde_json::json!([0.0, 20.0])));
 
+    // A hatch colour's legend: the ramp from paper to its ink.
+    let ink =
+        json_of(get(&server.url(&format!("/api/layers/{id}/legend.json?target=hatch_color&color=0,0,1"))).await).await;
+    assert_eq!((ink["target"].as_str(), ink["color"].as_str()), (Some("hatch_color"), Some("#0000ff")), "{ink}");
+    assert_eq!((ink["stops"][0].as_str(), ink["stops"][15].as_str()), (Some("#ffffff"), Some("#0000ff")), "{ink}");
+    assert!(ink.get("colormap").is_none(), "{ink}");
     let legend_url = |query: &str| server.url(&format!("/api/layers/{id}/legend.json?{query}"));
+    assert_error(get(&legend_url("target=hatch_color&color=0,0,3")).await, 422, "invalid_parameter", Some("color"))
+        .await;
+    assert_error(get(&legend_url("color=0,0,1")).await, 422, "invalid_parameter", Some("color")).await;
     assert_error(get(&legend_url("opacity=2")).await, 422, "invalid_parameter", Some("opacity")).await;
     assert_error(get(&legend_url("range=5,5")).await, 422, "invalid_parameter", Some("range")).await;
     assert_error(get(&legend_url("colormap=plaid")).await, 422, "invalid_parameter", Some("colormap")).await;
@@ -207,6 +221,10 @@ async fn upload_list_get_legends_and_delete() {
         assert!(openapi["paths"][path][method].is_object(), "OpenAPI lacks {method} {path}");
     }
     assert!(openapi["components"]["schemas"]["LayerMeta"].is_object());
+    // Mappings are described with their targets and the hatch colour's ink.
+    let targets = &openapi["components"]["schemas"]["MappingTarget"]["enum"];
+    assert!(targets.as_array().is_some_and(|t| t.contains(&Value::from("hatch_color"))), "{targets}");
+    assert!(openapi["components"]["schemas"]["Mapping"]["properties"]["color"].is_object());
     let metrics = get(&server.url("/metrics")).await.text().await.expect("metrics");
     for line in [
         r#"route="/api/layers",method="POST",status="201""#,
@@ -391,16 +409,169 @@ async fn renders_show_data_layers_in_plan_view_with_table_9_1_warnings() {
     assert!(warnings.iter().any(|w| w.contains("not quantifiable") && w.contains("Table 9.1")), "{warnings:?}");
     assert!(warnings.iter().any(|w| w.contains("after the last") && w.contains("clamped")), "{warnings:?}");
 
-    // Unknown layers are 404s; bad times, abstraction and a fourth mapping 422s.
+    // Abstraction is drawn per plant (a scalar: a Table 9.1 caution).
+    let body = serde_json::json!({"camera": camera, "width": 32, "height": 24,
+        "mappings": [{"layer": id, "target": "abstraction"}]});
+    let abstracted = render(&server, body).await;
+    assert_eq!(abstracted.status(), StatusCode::OK);
+    let warnings: Vec<String> =
+        abstracted.headers().get_all("warning").iter().map(|v| v.to_str().expect("ASCII").to_string()).collect();
+    assert!(warnings.iter().any(|w| w.contains("low-precision")), "{warnings:?}");
+
+    // Unknown layers are 404s; bad times and a fourth mapping 422s.
     let unknown = serde_json::json!({"mappings": [{"layer": "nope", "target": "color"}]});
     assert_error(render(&server, unknown).await, 404, "not_found", None).await;
     let bad_time = serde_json::json!({"mappings": colour, "time": "yesterday"});
     assert_error(render(&server, bad_time).await, 422, "invalid_parameter", Some("time")).await;
-    let abstraction = serde_json::json!({"mappings": [{"layer": id, "target": "abstraction"}]});
-    assert_error(render(&server, abstraction).await, 422, "invalid_parameter", Some("mappings")).await;
     let four = serde_json::json!({"mappings": [colour[0], colour[0], colour[0], colour[0]]});
     let message = assert_error(render(&server, four).await, 422, "invalid_parameter", Some("mappings")).await;
     assert!(message.contains("at most 3"), "{message}");
     let plan_pitch = serde_json::json!({"camera": {"mode": "plan", "pitch": -30}});
     assert_error(render(&server, plan_pitch).await, 422, "invalid_parameter", Some("camera.pitch")).await;
+}
+
+// ---------------------------------------------------------------------------------------------
+// WebSocket `data` messages
+
+type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
+
+/// The next message of a session: JSON, or a binary frame with its header.
+async fn next_message(socket: &mut Socket) -> Result<Value, (FrameHeader, image::RgbaImage)> {
+    loop {
+        let message = tokio::time::timeout(std::time::Duration::from_secs(60), socket.next())
+            .await
+            .expect("a message in time")
+            .expect("the session stays open")
+            .expect("a message");
+        match message {
+            Message::Text(text) => return Ok(serde_json::from_str(text.as_str()).expect("JSON message")),
+            Message::Binary(bytes) => {
+                let header = FrameHeader::decode(&bytes).expect("frame header");
+                let image = image::load_from_memory(&bytes[HEADER_LEN..]).expect("PNG or JPEG frame").to_rgba8();
+                return Err((header, image));
+            }
+            Message::Close(frame) => panic!("closed: {frame:?}"),
+            _ => {}
+        }
+    }
+}
+
+/// The JSON messages up to the next still frame, and that frame (interactive frames are skipped).
+async fn next_still(socket: &mut Socket) -> (Vec<Value>, FrameHeader, image::RgbaImage) {
+    let mut messages = Vec::new();
+    loop {
+        match next_message(socket).await {
+            Ok(json) => messages.push(json),
+            Err((header, image)) if header.still => return (messages, header, image),
+            Err(_) => {}
+        }
+    }
+}
+
+/// The `error` message answering a rejected control (no frame comes first: nothing changed).
+async fn next_error(socket: &mut Socket) -> Value {
+    match next_message(socket).await {
+        Ok(json) if json["type"] == "error" => json,
+        Ok(json) => panic!("an error message, not {json}"),
+        Err((header, _)) => panic!("an error message, not frame {}", header.frame_id),
+    }
+}
+
+async fn send_json(socket: &mut Socket, message: Value) {
+    socket.send(Message::text(message.to_string())).await.expect("send");
+}
+
+/// The entry of `lut` nearest to `pixel` as it shows on the default paper.
+fn nearest_entry(lut: &Lut, pixel: &image::Rgba<u8>) -> usize {
+    let paper = landsketch::render::Style::default().paper;
+    let distance = |c: &[u8; 4]| (0..3).map(|i| (f32::from(c[i]) * paper[i] - f32::from(pixel[i])).abs()).sum::<f32>();
+    (0..lut.colors.len()).min_by(|&a, &b| distance(&lut.colors[a]).total_cmp(&distance(&lut.colors[b]))).unwrap_or(0)
+}
+
+#[tokio::test]
+async fn websocket_data_messages_map_layers_and_bad_ones_get_errors() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let id = json_of(upload(&server, STEP_1, scene_tiff(0.0)).await).await["id"].as_str().expect("id").to_string();
+    // A north-up plan view of the scene's middle (it spans ±958 m east–west) without strokes,
+    // so the data's colours show on paper. The layer grows east by 1 per eighth of the scene,
+    // from about 0.2 to 6.8 across the view and 3.5 in its middle.
+    let style = r#"{"hatch_strength": 0, "contour_strength": 0, "silhouette_strength": 0}"#;
+    let query = format!(
+        "mode=plan&center=0,0&plan_width=1600&yaw=0&width=64&height=48&style={}",
+        form_urlencoded::byte_serialize(style.as_bytes()).collect::<String>()
+    );
+    let (mut socket, _) = tokio_tungstenite::connect_async(server.ws_url(&query)).await.expect("WebSocket");
+    let (_, first, plain) = next_still(&mut socket).await;
+    assert_eq!(first.seq, 0);
+
+    // Colour: the next still shows the colour map over the layer's values.
+    let colour = serde_json::json!({"layer": id, "target": "color", "colormap": "magma"});
+    send_json(&mut socket, serde_json::json!({"type": "data", "mappings": [colour]})).await;
+    let (messages, header, coloured) = next_still(&mut socket).await;
+    let answer = messages.iter().find(|m| m["type"] == "data").expect("a data message");
+    assert_eq!(answer["warnings"], serde_json::json!([]), "colour suits scalars: {answer}");
+    assert_eq!(header.seq, 1);
+    let changed = coloured.pixels().zip(plain.pixels()).filter(|(a, b)| a != b).count();
+    assert!(changed > coloured.pixels().len() * 9 / 10, "the frame is coloured ({changed} pixels changed)");
+    let spec = ColorMapSpec { map: Some(ColorMapName::Magma), ..ColorMapSpec::default() };
+    let lut = Lut::for_scalar(&spec, (0.0, 7.0)).expect("table");
+    let paper = landsketch::render::Style::default().paper;
+    for pixel in coloured.pixels() {
+        let entry = lut.colors[nearest_entry(&lut, pixel)];
+        let off = (0..3).map(|i| (f32::from(entry[i]) * paper[i] - f32::from(pixel[i])).abs()).fold(0.0, f32::max);
+        assert!(off <= 6.0, "{pixel:?} is a magma colour on paper (nearest {entry:?})");
+    }
+    let row: Vec<usize> = (0..64).map(|x| nearest_entry(&lut, coloured.get_pixel(x, 24))).collect();
+    assert!(row.windows(2).all(|w| w[1] + 2 >= w[0]), "magma runs west to east: {row:?}");
+    assert!(row[0] < 20 && row[63] > 235 && row[31].abs_diff(128) <= 10, "{row:?}");
+
+    // Bad mappings: an error naming the problem, nothing changes, the session goes on.
+    let unknown = serde_json::json!({"layer": "no-such-layer", "target": "color"});
+    send_json(&mut socket, serde_json::json!({"type": "data", "mappings": [unknown]})).await;
+    let error = next_error(&mut socket).await;
+    assert_eq!(error["code"], "not_found", "{error}");
+    assert!(error["message"].as_str().is_some_and(|m| m.contains("no-such-layer")), "{error}");
+    let too_opaque = serde_json::json!({"layer": id, "target": "color", "opacity": 2});
+    send_json(&mut socket, serde_json::json!({"type": "data", "mappings": [too_opaque]})).await;
+    let error = next_error(&mut socket).await;
+    assert_eq!((error["code"].as_str(), error["parameter"].as_str()), (Some("invalid_parameter"), Some("mappings")));
+    assert!(error["message"].as_str().is_some_and(|m| m.contains("opacity 2")), "{error}");
+    let too_bright = serde_json::json!({"layer": id, "target": "hatch_color", "color": [0, 2, 0]});
+    send_json(&mut socket, serde_json::json!({"type": "data", "mappings": [too_bright]})).await;
+    let error = next_error(&mut socket).await;
+    assert!(error["message"].as_str().is_some_and(|m| m.contains("color [0, 2, 0]")), "{error}");
+    let misplaced = serde_json::json!({"layer": id, "target": "color", "color": [0, 0, 1]});
+    send_json(&mut socket, serde_json::json!({"type": "data", "mappings": [misplaced]})).await;
+    let error = next_error(&mut socket).await;
+    assert!(error["message"].as_str().is_some_and(|m| m.contains("hatch_color")), "{error}");
+
+    // Hatch colour (thesis Fig. 9.3) over 2…5: no ink in the west (x < −358 m, at the bottom
+    // of the range), dense blue strokes in the east, and the Table 9.1 caution in the answer.
+    // Only the valid controls count.
+    let blue = serde_json::json!({"layer": id, "target": "hatch_color", "color": [0, 0, 1], "range": [2, 5]});
+    send_json(&mut socket, serde_json::json!({"type": "data", "mappings": [blue]})).await;
+    let (messages, header, hatched) = next_still(&mut socket).await;
+    assert!(messages.iter().all(|m| m["type"] != "error"), "{messages:?}");
+    let answer = messages.iter().find(|m| m["type"] == "data").expect("a data message");
+    let warnings = answer["warnings"].as_array().expect("warnings");
+    assert!(warnings.iter().any(|w| w.as_str().is_some_and(|w| w.contains("hatch_color"))), "{answer}");
+    assert_eq!(header.seq, 2, "the rejected controls do not count");
+    let blue_ink = |x0: u32| {
+        (x0..x0 + 16)
+            .flat_map(|x| (0..48).map(move |y| (x, y)))
+            .filter(|&(x, y)| {
+                let p = hatched.get_pixel(x, y);
+                i32::from(p[2]) - i32::from(p[0].max(p[1])) > 40
+            })
+            .count()
+    };
+    let (west, east) = (blue_ink(0), blue_ink(48));
+    assert!(west == 0 && east > 16 * 48 / 2, "blue hatching in the east only: {west} west, {east} east pixels");
+    let west_paper = (0..16)
+        .flat_map(|x| (0..48).map(move |y| (x, y)))
+        .all(|(x, y)| hatched.get_pixel(x, y) == plain.get_pixel(x, y));
+    assert!(west_paper, "the west stays as it was");
+    // Blue ink filters red and green only: the blue channel keeps the paper's value.
+    assert!(hatched.pixels().all(|p| p[2] >= 245), "only blue ink on the paper");
 }

@@ -5,10 +5,12 @@
 mod common;
 
 use common::{assert_matches_reference, fraction, gpu, trees_on_a_plain};
+use landsketch::gis::Raster;
 use landsketch::prep::cache::DiskCache;
 use landsketch::prep::lod::{LodLevel, LodSettings};
 use landsketch::render::{RenderOptions, Renderer, Style};
 use landsketch::scene::camera::Camera;
+use landsketch::scene::terrain::Terrain;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -105,6 +107,62 @@ fn levels_are_chosen_by_distance_and_cut_the_triangles() {
 }
 
 #[test]
+fn reference_points_thin_out_with_distance() {
+    // Thesis 7.3, Fig. 7.6: HLP centres near the camera, plant centres at middle distance and
+    // terrain-grid points far away. 60 trees on a 9 m lattice cover 3 × 2 cells of the 40 m grid.
+    let positions: Vec<[f32; 2]> = (0..60).map(|i| [(i % 10) as f32 * 9.0 - 45.0, (i / 10) as f32 * 9.0]).collect();
+    let scene = trees_on_a_plain(&positions);
+    let height = scene.species[0].model.height();
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    let (width, h) = (512, 384);
+    let px_per_metre = h as f32 / (2.0 * 30f32.to_radians().tan());
+    let looking_north_from = |y: f32| Camera::perspective([0.0, y, 100.0 + height * 0.5], 0.0, 0.0, 60.0);
+
+    let near = renderer.draw_stats(&looking_north_from(-30.0), width, h);
+    assert!(near.per_level[0] + near.per_level[1] > 0, "{near:?}");
+    assert!(near.reference_points > near.plants_drawn, "near trees bring their HLPs: {near:?}");
+
+    // Every tree between 32 px (below the HLP level's blend band) and 12 px: one point each.
+    let distance = height * px_per_metre / 30.0;
+    let middle = renderer.draw_stats(&looking_north_from(-distance), width, h);
+    assert_eq!(middle.per_level, [0, 0, 60], "{middle:?}");
+    assert_eq!(middle.reference_points, 60, "{middle:?}");
+
+    // Far away the trees share the points of their grid cells.
+    let far = renderer.draw_stats(&looking_north_from(-height * px_per_metre / 4.0), width, h);
+    assert_eq!(far.plants_drawn, 60, "{far:?}");
+    assert_eq!(far.reference_points, 6, "{far:?}");
+}
+
+#[test]
+fn terrain_chunks_coarsen_with_distance_without_cracks() {
+    // A 257 × 257 DEM of 10 m cells with rolling hills, seen from walking height at its south end.
+    let n = 257;
+    let data = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f64, (i / n) as f64);
+            100.0 + 8.0 * (x * 0.07).sin() * (y * 0.05).cos() + 3.0 * (x * 0.31 + y * 0.17).sin()
+        })
+        .collect();
+    let mut scene = trees_on_a_plain(&[]);
+    let dem = Raster { width: n, height: n, data, ..scene.terrain.dem.clone() };
+    scene.terrain = Terrain::new(dem, [1.0; 3]).unwrap();
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    let camera = Camera::perspective([0.0, -1100.0, 125.0], 0.0, -5.0, 60.0);
+    let (width, height) = (320, 240);
+    let stats = renderer.draw_stats(&camera, width, height);
+    let full = 2 * (n as u64 - 1) * (n as u64 - 1);
+    assert_eq!(stats.source_triangles, full);
+    assert!(stats.triangles < full / 4, "distant chunks are coarser or culled: {stats:?}");
+    // No cracks between chunks at different levels: below the horizon every pixel is terrain.
+    let ids = renderer.object_ids(&camera, width, height).unwrap();
+    let holes = ids[(width * height / 2) as usize..].iter().filter(|&&id| id == 0).count();
+    assert_eq!(holes, 0, "background shows through the terrain in {holes} pixels");
+    let image = renderer.render(&camera, Style::default(), width, height).unwrap();
+    assert!(fraction(&image, |l| l < 0.5) > 0.01, "the hills are drawn");
+}
+
+#[test]
 fn a_second_start_with_the_disk_cache_does_no_preprocessing() {
     let dir = tempfile::tempdir().unwrap();
     // A species no other test uses, so the in-process HLP cache starts cold.
@@ -118,7 +176,10 @@ fn a_second_start_with_the_disk_cache_does_no_preprocessing() {
     let first_cache = Arc::new(DiskCache::open(dir.path()).unwrap());
     let first = render(&first_cache);
     let stats = first_cache.stats();
-    assert_eq!((stats.hits, stats.misses), (0, 2), "HLPs and billboards computed once: {stats:?}");
+    // HLPs and billboards (keyed by this test's radius) are computed; the leaf shape maps and
+    // the implicit-surface illumination reach the disk only when no other test of this process
+    // has them in memory yet.
+    assert!(stats.hits == 0 && stats.misses >= 2, "HLPs and billboards computed once: {stats:?}");
     // A restart: a new cache object on the same directory answers everything from disk. (The
     // HLPs are still in this process's memory cache, so only the billboards reach the disk.)
     let second_cache = Arc::new(DiskCache::open(dir.path()).unwrap());

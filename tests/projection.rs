@@ -2,13 +2,14 @@
 //! zenith, so the bare sketch is paper) and seen from above. A label checkerboard shows its
 //! palette colour in each square, a scalar ramp runs monotonically through the colour map, a
 //! two-step series at its midpoint time shows the midpoint colour, nodata cells stay paper,
-//! and the other Table 9.1 features (hatch tone, hatch pattern, silhouettes) change the ink.
+//! the other Table 9.1 features (hatch tone, hatch pattern, silhouettes) change the ink, and
+//! hatch colours (thesis 9.2.2, Fig. 9.3) draw one coloured hatching per field.
 //! References in `tests/reference/projection/`.
 
 mod common;
 
 use chrono::{DateTime, Utc};
-use common::{assert_matches_reference, fraction, gpu, trees_on_a_plain};
+use common::{assert_matches_reference, fraction, gpu, luminance, trees_on_a_plain};
 use landsketch::fields::{
     ColorMapName, ColorMapSpec, Field, FieldKind, FieldStep, Lut, Mapping, MappingTarget, parse_time,
 };
@@ -133,7 +134,7 @@ fn scalar_ramp_runs_monotonically_through_the_colour_map() {
     // Values grow eastwards: 0 … 15 over 16 columns of 12.5 m.
     let ramp = field(FieldKind::Scalar, 16, 16, 12.5, &[("", &|c, _| c as f64)]);
     let mapping = Mapping { colormap: Some(ColorMapName::Magma), ..Mapping::new("ramp", MappingTarget::Color) };
-    let lut = Lut::for_field(&mapping.color_spec(), &ramp).unwrap();
+    let lut = Lut::for_field(&mapping.color_spec(0), &ramp).unwrap();
     let image = render(&view("ramp", ramp, mapping, None), &plain_style());
     assert_matches_reference(&image, &reference("ramp"), 0.02);
     // Along the ramp, each pixel's nearest table entry must not go back.
@@ -238,17 +239,147 @@ fn hatch_tone_and_pattern_follow_the_labels() {
     assert!(differs(true) > 200, "label 1 switches to another TAM");
 }
 
+/// Whether a pixel is ink of `rgb` (an sRGB colour with one dominant channel): its dominant
+/// channel exceeds both others by 40 levels.
+fn is_ink_of(p: [u8; 3], rgb: [f32; 3]) -> bool {
+    let dominant = (0..3).max_by(|&a, &b| rgb[a].total_cmp(&rgb[b])).unwrap_or(0);
+    (0..3).filter(|&i| i != dominant).all(|i| i32::from(p[dominant]) - i32::from(p[i]) > 40)
+}
+
+/// Pixels of `image` in the scene rectangle x0…x1, y0…y1 (metres of the plan view).
+fn pixels_in(image: &image::RgbaImage, (x0, x1): (f32, f32), (y0, y1): (f32, f32)) -> Vec<[u8; 3]> {
+    let px = |v: f32| ((v + VIEW_WIDTH / 2.0) * SIZE as f32 / VIEW_WIDTH).clamp(0.0, SIZE as f32) as u32;
+    (px(-y1)..px(-y0))
+        .flat_map(|row| (px(x0)..px(x1)).map(move |col| (col, row)))
+        .map(|(col, row)| {
+            let p = image.get_pixel(col, row);
+            [p[0], p[1], p[2]]
+        })
+        .collect()
+}
+
+/// Mean ink coverage of a region drawn in `rgb` over paper: how far each pixel has moved from
+/// the paper towards the ink, along the channel where they differ most.
+fn coverage(pixels: &[[u8; 3]], rgb: [f32; 3]) -> f64 {
+    let paper = Style::default().paper.map(|c| c * 255.0);
+    let ink = rgb.map(|c| c * 255.0);
+    let channel = (0..3).max_by(|&a, &b| (paper[a] - ink[a]).abs().total_cmp(&(paper[b] - ink[b]).abs())).unwrap_or(0);
+    let span = f64::from(paper[channel] - ink[channel]);
+    let sum: f64 =
+        pixels.iter().map(|p| ((f64::from(paper[channel]) - f64::from(p[channel])) / span).clamp(0.0, 1.0)).sum();
+    sum / pixels.len().max(1) as f64
+}
+
 #[test]
-fn too_many_mappings_and_abstraction_are_errors() {
+fn a_hatch_colour_darkens_with_the_value_in_its_own_ink() {
+    // Values grow eastwards, 0 … 15 over 16 columns of 12.5 m; the range starts at 3, so the
+    // west (x < −56 m) is at the bottom of the range.
+    let ramp = field(FieldKind::Scalar, 16, 16, 12.5, &[("", &|c, _| c as f64)]);
+    let red = [1.0, 0.0, 0.0];
+    let mapping =
+        Mapping { range: Some([3.0, 15.0]), color: Some(red), ..Mapping::new("ramp", MappingTarget::HatchColor) };
+    let image = render(&view("hatch ramp", ramp, mapping, None), &plain_style());
+    let paper = on_paper([255; 4]);
+    let bottom = pixels_in(&image, (-98.0, -60.0), (-98.0, 98.0));
+    assert!(!bottom.is_empty() && bottom.iter().all(|&p| p == paper), "no ink at the bottom of the range");
+    // Eastwards from the bottom of the range, in bands of 12.5 m: more and more red ink.
+    let bands: Vec<f64> = (0..12)
+        .map(|i| {
+            let x0 = -56.25 + 12.5 * i as f32;
+            coverage(&pixels_in(&image, (x0, x0 + 12.5), (-98.0, 98.0)), red)
+        })
+        .collect();
+    assert!(bands.windows(2).all(|w| w[1] >= w[0] - 0.01), "coverage grows with the value: {bands:?}");
+    assert!(bands[0] < 0.05 && bands[11] > 0.5, "from nearly paper to mostly ink: {bands:?}");
+    let east = pixels_in(&image, (60.0, 98.0), (-98.0, 98.0));
+    let red_ink = east.iter().filter(|&&p| is_ink_of(p, red)).count();
+    assert!(red_ink > east.len() / 2, "red-dominant ink in the east: {red_ink} of {}", east.len());
+    assert!(east.iter().all(|p| p[0] >= p[1].max(p[2])), "no other colour than red on the paper");
+}
+
+#[test]
+fn three_fields_as_three_hatch_colours() {
+    // Thesis Fig. 9.3: a ramp growing east in red, one growing north in green, a constant
+    // middle value in blue — each field in its own ink and stroke direction.
+    let (red, green, blue) = ([0.9, 0.1, 0.1], [0.1, 0.7, 0.1], [0.1, 0.2, 0.9]);
+    let layer = |key: &str, value: &dyn Fn(usize, usize) -> f64| {
+        Arc::new(DataLayer { key: key.into(), field: field(FieldKind::Scalar, 16, 16, 12.5, &[("", value)]) })
+    };
+    let hatch = |layer: Arc<DataLayer>, range: [f64; 2], color| DataMapping {
+        mapping: Mapping {
+            range: Some(range),
+            color: Some(color),
+            ..Mapping::new(&layer.key, MappingTarget::HatchColor)
+        },
+        layer,
+    };
+    let data = DataView {
+        mappings: vec![
+            hatch(layer("east", &|c, _| c as f64), [3.0, 15.0], red),
+            hatch(layer("north", &|_, r| 15.0 - r as f64), [3.0, 15.0], green),
+            hatch(layer("constant", &|_, _| 1.0), [0.0, 2.0], blue),
+        ],
+        time: None,
+    };
+    let image = render(&data, &plain_style());
+    assert_matches_reference(&image, &reference("hatch_colors"), 0.03);
+    let count = |x, y, rgb| pixels_in(&image, x, y).iter().filter(|&&p| is_ink_of(p, rgb)).count();
+    let (west, east, south, north, all) = ((-98.0, -60.0), (60.0, 98.0), (-98.0, -60.0), (60.0, 98.0), (-98.0, 98.0));
+    assert_eq!(count(west, all, red), 0, "no red where the east ramp is at its bottom");
+    assert!(count(east, all, red) > 300, "red in the east: {}", count(east, all, red));
+    assert_eq!(count(all, south, green), 0, "no green where the north ramp is at its bottom");
+    assert!(count(all, north, green) > 300, "green in the north: {}", count(all, north, green));
+    // The constant field alone in the south-west: blue strokes at its middle darkness.
+    let blue_alone = coverage(&pixels_in(&image, west, south), blue);
+    assert!((0.3..0.7).contains(&blue_alone), "blue ink covers {blue_alone} of the south-west");
+    assert!(count(west, north, blue) >= 10 && count(east, south, blue) >= 10, "blue strokes beside green and red");
+    // The inks multiply (no field hides another): where all three are high, the crossing
+    // strokes are darkest.
+    let mean_luminance = |x, y| {
+        let pixels = pixels_in(&image, x, y);
+        pixels.iter().map(|p| luminance(&image::Rgba([p[0], p[1], p[2], 255]))).sum::<f32>() / pixels.len() as f32
+    };
+    let north_east = mean_luminance(east, north);
+    for (x, y) in [(west, south), (west, north), (east, south)] {
+        assert!(north_east < mean_luminance(x, y), "the north-east is darkest: {north_east} vs {x:?} × {y:?}");
+    }
+}
+
+#[test]
+fn abstraction_follows_the_field_per_plant() {
+    // Two trees ahead of the camera, one over each half of a field that is 0 in the west and 1
+    // in the east (10 m cells, so bilinear sampling is 0 or 1 at the trees): mapped onto abstraction (Table 9.1), the eastern tree's leaves move onto its
+    // HLP spheres as with `hlp_abstraction` 1 and the western tree stays as modelled.
+    let scene = common::trees_on_a_plain(&[[-12.0, 10.0], [12.0, 10.0]]);
+    let renderer = common::full_detail(&scene);
+    let camera = scene.default_camera;
+    let (w, h) = (160, 120);
+    let halves = field(FieldKind::Scalar, 20, 20, 10.0, &[("", &|col, _| if col < 10 { 0.0 } else { 1.0 })]);
+    let data = view("halves", halves, Mapping::new("halves", MappingTarget::Abstraction), None);
+    let shown = renderer.render_with_data(&camera, Style::default(), w, h, &data).expect("render");
+    let as_style = |a: f32| {
+        let style = Style { hlp_abstraction: a, ..Style::default() };
+        renderer.render_with_data(&camera, style, w, h, &DataView::default()).expect("render")
+    };
+    let (modelled, abstract_) = (as_style(0.0), as_style(1.0));
+    let differing = |a: &image::RgbaImage, b: &image::RgbaImage, xs: std::ops::Range<u32>| {
+        xs.flat_map(|x| (0..h).map(move |y| (x, y))).filter(|&(x, y)| a.get_pixel(x, y) != b.get_pixel(x, y)).count()
+    };
+    let (west, east) = (0..w / 2, w / 2..w);
+    assert!(differing(&modelled, &abstract_, west.clone()) > 200, "abstraction changes the western tree");
+    assert!(differing(&modelled, &abstract_, east.clone()) > 200, "abstraction changes the eastern tree");
+    assert_eq!(differing(&shown, &modelled, west), 0, "the western tree keeps its leaves");
+    assert_eq!(differing(&shown, &abstract_, east), 0, "the eastern tree is abstracted");
+}
+
+#[test]
+fn too_many_mappings_are_errors() {
     let one = field(FieldKind::Scalar, 1, 1, 200.0, &[("", &|_, _| 1.0)]);
     let layer = Arc::new(DataLayer { key: "one".into(), field: one });
     let mapping = |target| DataMapping { layer: layer.clone(), mapping: Mapping::new("one", target) };
     let four = DataView { mappings: vec![mapping(MappingTarget::Color); 4], time: None };
     let err = plain().1.render_with_data(&plan(), Style::default(), 16, 16, &four).unwrap_err();
     assert!(matches!(err, RenderError::Data(_)) && err.to_string().contains("at most 3"), "{err}");
-    let abstraction = DataView { mappings: vec![mapping(MappingTarget::Abstraction)], time: None };
-    let err = plain().1.render_with_data(&plan(), Style::default(), 16, 16, &abstraction).unwrap_err();
-    assert!(err.to_string().contains("abstraction"), "{err}");
 }
 
 #[test]

@@ -279,3 +279,97 @@ fn a_hidden_layer_draws_no_plants() {
     assert_eq!(renderer.render(&camera, &hidden, 160, 120).unwrap(), without_plants);
     assert_ne!(renderer.render(&camera, Style::default(), 160, 120).unwrap(), without_plants);
 }
+
+/// Mean luminance of the `mask` pixels of `image`.
+fn masked_mean(image: &image::RgbaImage, mask: &[bool]) -> f32 {
+    let values: Vec<f32> = image.pixels().zip(mask).filter(|(_, m)| **m).map(|(p, _)| luminance(p)).collect();
+    mean(&values)
+}
+
+/// Mean absolute luminance step between neighbouring `mask` pixels (right and down): the
+/// small-scale noise of the shading.
+fn masked_noise(image: &image::RgbaImage, mask: &[bool]) -> f32 {
+    let (w, h) = image.dimensions();
+    let mut steps = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            for (nx, ny) in [(x + 1, y), (x, y + 1)] {
+                let (i, j) = ((y * w + x) as usize, (ny * w + nx) as usize);
+                if nx < w && ny < h && mask[i] && mask[j] {
+                    steps.push((luminance(image.get_pixel(x, y)) - luminance(image.get_pixel(nx, ny))).abs());
+                }
+            }
+        }
+    }
+    mean(&steps)
+}
+
+#[test]
+fn implicit_surface_illumination_smooths_and_darkens_the_crown() {
+    // Luft et al. 2007 on one tree lit from the east (the right of the image): the leaves' own
+    // normals, normals realigned to the implicit surface (§3.3), and those with the ambient
+    // light darkened by k_a (eq. 4) — in colour (top row) and in pen and ink (bottom row).
+    let mut scene = trees_on_a_plain(&[[0.0, 0.0]]);
+    scene.sun = Sun { azimuth: 100.0, elevation: 30.0 };
+    let renderer = full_detail(&scene);
+    let camera = Camera { position: [0.0, -11.0, 106.0], pitch: 4.0, fov: 50.0, ..scene.default_camera };
+    let colour = Style {
+        color: 1.0,
+        hatch_strength: 0.0,
+        contour_strength: 0.0,
+        silhouette_strength: 0.0,
+        normal_blend: 0.0,
+        ..Style::default()
+    };
+    let ink = Style { normal_blend: 0.0, ..Style::default() };
+    let row = |base: &Style| {
+        [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)].map(|(implicit_normals, ambient_occlusion)| {
+            let style = Style { implicit_normals, ambient_occlusion, ..base.clone() };
+            renderer.render(&camera, &style, SIZE.0, SIZE.1).unwrap()
+        })
+    };
+    let (colours, inks) = (row(&colour), row(&ink));
+    let mut sheet = image::RgbaImage::new(3 * SIZE.0, 2 * SIZE.1);
+    for (i, image) in colours.iter().chain(&inks).enumerate() {
+        image::imageops::replace(&mut sheet, image, i64::from(i as u32 % 3 * SIZE.0), i64::from(i as u32 / 3 * SIZE.1));
+    }
+    assert_matches_reference(&sheet, &reference("implicit_illumination"), 0.02);
+
+    // The crown: the green pixels (the plain is grey, the trunk brown, the sky paper).
+    let [own, realigned, occluded] = &colours;
+    let crown: Vec<bool> = own.pixels().map(|p| i32::from(p[1]) > i32::from(p[0]) + 15).collect();
+    let area = crown.iter().filter(|c| **c).count();
+    assert!(area > 3000, "the crown covers {area} pixels");
+    // Realigned normals follow the crown's shape, not the random leaves: smoother shading.
+    let (noise_own, noise_realigned) = (masked_noise(own, &crown), masked_noise(realigned, &crown));
+    assert!(noise_realigned < 0.85 * noise_own, "noise {noise_own} → {noise_realigned}");
+    // ... and a light side: the crown's east half gets brighter than its west half.
+    let centre_x = crown.iter().enumerate().filter(|(_, c)| **c).map(|(i, _)| (i as u32 % SIZE.0) as f32).sum::<f32>()
+        / area as f32;
+    let half = |east: bool| -> Vec<bool> {
+        crown.iter().enumerate().map(|(i, c)| *c && ((i as u32 % SIZE.0) as f32 > centre_x) == east).collect()
+    };
+    let contrast = |image| masked_mean(image, &half(true)) - masked_mean(image, &half(false));
+    assert!(contrast(realigned) > contrast(own) + 0.01, "east − west {} → {}", contrast(own), contrast(realigned));
+    // Ambient occlusion darkens the crown, its dense centre more than its rim.
+    let (lit, dark) = (masked_mean(realigned, &crown), masked_mean(occluded, &crown));
+    assert!(dark < 0.9 * lit, "mean {lit} → {dark}");
+    let centre_y = crown.iter().enumerate().filter(|(_, c)| **c).map(|(i, _)| (i as u32 / SIZE.0) as f32).sum::<f32>()
+        / area as f32;
+    let radius = (area as f32 / std::f32::consts::PI).sqrt();
+    let ring = |lo: f32, hi: f32| -> Vec<bool> {
+        crown
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let (x, y) = ((i as u32 % SIZE.0) as f32 - centre_x, (i as u32 / SIZE.0) as f32 - centre_y);
+                *c && (lo..hi).contains(&((x * x + y * y).sqrt() / radius))
+            })
+            .collect()
+    };
+    let darkening = |mask: &[bool]| masked_mean(occluded, mask) / masked_mean(realigned, mask);
+    let (centre, rim) = (darkening(&ring(0.0, 0.5)), darkening(&ring(0.8, 2.0)));
+    assert!(centre < rim - 0.05, "centre keeps {centre} of its light, the rim {rim}");
+    // In pen and ink the darker crown carries more ink.
+    assert!(masked_mean(&inks[2], &crown) < 0.9 * masked_mean(&inks[1], &crown));
+}

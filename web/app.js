@@ -17,7 +17,7 @@ const STILL_QUALITY = 90;
 const LINK_DELAY_MS = 300;
 const RESIZE_DELAY_MS = 250;
 /** Mapping targets the renderer draws (the `mappings` field of `POST /api/render`, README "Render parameters"). */
-const MAPPING_TARGETS = ['color', 'hatch_tone', 'hatch_pattern', 'silhouette_style', 'silhouette_density'];
+const MAPPING_TARGETS = ['color', 'hatch_tone', 'hatch_color', 'hatch_pattern', 'silhouette_style', 'silhouette_density', 'abstraction'];
 
 /** Everything the page knows: the scene, the view, the session and what the server supports. */
 const app = {

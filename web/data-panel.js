@@ -1,10 +1,22 @@
 // The data panel: the stored layers (`GET /api/layers`) with their legends
 // (`/api/layers/{id}/legend.png`, drawn with the layer's mapping), a mapping choice per layer
-// (target, colour map, range), the server's suitability warnings (thesis Table 9.1), a delete
-// button, and the time slider with play/pause and speed.
+// (target, colour map or hatch colour, range), the server's suitability warnings (thesis
+// Table 9.1), a delete button, and the time slider with play/pause and speed.
 
 /** Sub-steps of the time slider between two time steps of the data. */
 const SUBSTEPS = 8;
+/** Default inks of `hatch_color` mappings (the server's `fields::HATCH_COLORS`, Okabe–Ito). */
+const HATCH_COLORS = ['#d55e00', '#0072b2', '#009e73'];
+
+/** `#rrggbb` as the API's sRGB `[r, g, b]` (0…1). */
+export function rgbOf(hex) {
+  return [1, 3, 5].map((i) => Math.round((parseInt(hex.slice(i, i + 2), 16) / 255) * 1000) / 1000);
+}
+
+/** The API's sRGB `[r, g, b]` (0…1) as `#rrggbb`. */
+export function hexOf(rgb) {
+  return `#${rgb.map((c) => Math.round(c * 255).toString(16).padStart(2, '0')).join('')}`;
+}
 
 /** Formats an RFC 3339 time without fractions: `2024-06-01 00:00 UTC`. */
 export function formatTime(iso) {
@@ -37,10 +49,13 @@ function element(tag, props = {}, ...children) {
   return node;
 }
 
-/** The legend query of a mapping (colour map, range, reverse, opacity). */
+/** The legend query of a mapping (colour map or hatch colour, range, reverse). */
 export function legendQuery(mapping) {
   const query = new URLSearchParams();
-  if (mapping?.colormap) query.set('colormap', mapping.colormap);
+  if (mapping?.target === 'hatch_color') {
+    query.set('target', 'hatch_color');
+    if (mapping.color) query.set('color', mapping.color.join(','));
+  } else if (mapping?.colormap) query.set('colormap', mapping.colormap);
   if (mapping?.range) query.set('range', mapping.range.join(','));
   if (mapping?.reverse) query.set('reverse', 'true');
   return query.toString();
@@ -127,17 +142,33 @@ export class DataPanel {
     const lo = element('input', { type: 'number', id: `${base}-min`, step: 'any', value: mapping?.range?.[0] ?? layer.min });
     const hi = element('input', { type: 'number', id: `${base}-max`, step: 'any', value: mapping?.range?.[1] ?? layer.max });
     const reverse = element('input', { type: 'checkbox', id: `${base}-reverse`, checked: Boolean(mapping?.reverse) });
+    // The ink of a hatch colour (thesis Fig. 9.3): by default the first one no other layer uses.
+    const used = this.mappings.filter((m) => m.layer !== layer.id && m.color).map((m) => hexOf(m.color));
+    const ink = element('input', {
+      type: 'color',
+      id: `${base}-color`,
+      value: mapping?.color ? hexOf(mapping.color) : HATCH_COLORS.find((c) => !used.includes(c)) ?? HATCH_COLORS[0],
+    });
     const field = (label, control) => element('div', { className: 'field' }, element('label', { htmlFor: control.id, textContent: label }), control);
     const rangeRow = element('div', { className: 'row' },
       element('label', { htmlFor: lo.id, textContent: 'Range' }), lo,
       element('label', { htmlFor: hi.id, textContent: 'to' }), hi);
     const reverseRow = element('label', { className: 'check' }, reverse, 'Reverse');
-    box.append(field('Show as', target), field('Colour map', colormap), rangeRow, reverseRow);
+    const colormapField = field('Colour map', colormap);
+    const inkField = field('Hatch colour', ink);
+    const showFields = () => {
+      inkField.hidden = target.value !== 'hatch_color';
+      colormapField.hidden = !inkField.hidden;
+    };
+    showFields();
+    box.append(field('Show as', target), colormapField, inkField, rangeRow, reverseRow);
     const changed = () => {
+      showFields();
       const others = this.mappings.filter((m) => m.layer !== layer.id);
       if (target.value) {
         const m = { layer: layer.id, target: target.value };
-        if (colormap.value) m.colormap = colormap.value;
+        if (target.value === 'hatch_color') m.color = rgbOf(ink.value);
+        else if (colormap.value) m.colormap = colormap.value;
         const ends = [Number(lo.value), Number(hi.value)];
         if (ends.every(Number.isFinite) && ends[0] !== ends[1] && (ends[0] !== layer.min || ends[1] !== layer.max)) m.range = ends;
         if (reverse.checked) m.reverse = true;
@@ -149,7 +180,7 @@ export class DataPanel {
       this.updateTime();
       this.options.onMappings(this.mappings);
     };
-    for (const control of [target, colormap, reverse]) control.addEventListener('change', changed);
+    for (const control of [target, colormap, reverse, ink]) control.addEventListener('change', changed);
     for (const control of [lo, hi]) control.addEventListener('change', changed);
     return box;
   }

@@ -5,6 +5,7 @@
 //! RSS and an estimate of GPU memory. No figure here is asserted anywhere; it is measured.
 
 use crate::prep::cache::DiskCache;
+use crate::render::projection::DataView;
 use crate::render::{Gpu, RenderError, RenderOptions, Renderer, Style};
 use crate::scene::camera::Camera;
 use crate::scene::config::SceneConfig;
@@ -72,7 +73,7 @@ pub struct StyleRun {
     /// Frames per second from the median frame.
     pub fps: f64,
     /// Per pass, measured in separate frames that wait for the GPU after every pass:
-    /// `cull` (CPU: frustum culling, LOD selection, instance upload), `geometry`,
+    /// `cull` (CPU: frustum culling, LOD selection, reference update, upload), `geometry`,
     /// `prefilter`, `contour`, `data`, `compose`, `readback`, and `encode` (JPEG, quality 80).
     pub passes_ms: BTreeMap<String, Stat>,
     pub triangles: u64,
@@ -80,6 +81,8 @@ pub struct StyleRun {
     pub plants_drawn: u64,
     /// Plant draws per level of detail (full, HLP billboards, plant billboard).
     pub per_level: [u64; 3],
+    /// Hatching reference points of the frame (HLPs near, plants, terrain-grid cells far).
+    pub reference_points: u64,
 }
 
 /// The figures of one scene size.
@@ -209,16 +212,19 @@ fn run_style(
     let (w, h) = (options.width, options.height);
     // Warm-up: pipelines, first-use allocations.
     renderer.render(&cameras[0], style, w, h)?;
+    // The walk is rendered as a session would: the hatching follows the camera (eq. 6.2).
+    let mut state = renderer.new_view_state();
     let mut frames = Vec::with_capacity(cameras.len());
     for camera in cameras {
         let started = Instant::now();
-        let image = renderer.render(camera, style, w, h)?;
-        encode_jpeg(&image)?;
+        let frame = renderer.render_view(&mut state, camera, style, w, h, &DataView::default(), false)?;
+        encode_jpeg(&frame.image)?;
         frames.push(started.elapsed().as_secs_f64() * 1e3);
     }
+    let mut state = renderer.new_view_state();
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     for camera in cameras {
-        let (image, timings) = renderer.render_profiled(camera, style, w, h)?;
+        let (image, timings) = renderer.render_profiled(Some(&mut state), camera, style, w, h)?;
         for (pass, ms) in timings {
             passes.entry(pass.to_owned()).or_default().push(ms);
         }
@@ -237,6 +243,7 @@ fn run_style(
         percent_drawn: stats.percent_drawn(),
         plants_drawn: stats.plants_drawn,
         per_level: stats.per_level,
+        reference_points: stats.reference_points,
     })
 }
 

@@ -99,6 +99,14 @@ struct LegendArgs {
     /// Run the colour map backwards.
     #[arg(long)]
     reverse: bool,
+    /// The mapping target the legend explains: `color` (the colour map) or `hatch_color` (the
+    /// ramp from paper to the ink `--color`).
+    #[arg(long, default_value = "color", value_parser = ["color", "hatch_color"])]
+    target: String,
+    /// Ink of a `hatch_color` legend, sRGB "R,G,B" each 0..1 (default the first slot's,
+    /// vermillion).
+    #[arg(long, value_name = "R,G,B")]
+    color: Option<String>,
     /// Title (default: the file name).
     #[arg(long)]
     title: Option<String>,
@@ -468,6 +476,16 @@ fn data_view(args: &RenderArgs) -> Result<DataView> {
     Ok(LayerCache::default().view(&request, &store)?)
 }
 
+/// The `N` comma-separated numbers of `flag`'s value, e.g. `--range 0,10`.
+fn numbers<T: std::str::FromStr, const N: usize>(flag: &str, text: &str) -> Result<[T; N]> {
+    let values: Vec<T> = text
+        .split(',')
+        .map(|s| s.trim().parse::<T>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))?;
+    values.try_into().map_err(|_| anyhow::anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))
+}
+
 fn legend(args: &LegendArgs) -> Result<()> {
     let kind: FieldKind = args.kind.parse()?;
     let mut options = LoadOptions::new(kind);
@@ -475,20 +493,15 @@ fn legend(args: &LegendArgs) -> Result<()> {
     options.units = args.units.clone();
     options.crs = args.crs.as_deref().map(CrsDefinition::parse).transpose()?;
     let field = fields::load_file(&args.file, &options)?;
-    let range = match &args.range {
-        Some(text) => {
-            let v: Vec<f64> = text
-                .split(',')
-                .map(|s| s.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .with_context(|| format!("--range {text:?}: expected LO,HI numbers"))?;
-            let [lo, hi] = v[..] else { bail!("--range {text:?}: expected LO,HI") };
-            Some([lo, hi])
-        }
-        None => None,
-    };
+    let range = args.range.as_deref().map(|text| numbers::<f64, 2>("--range", text)).transpose()?;
     let map = args.colormap.as_deref().map(str::parse::<ColorMapName>).transpose()?;
-    let spec = ColorMapSpec { map, range, opacity: args.opacity, reverse: args.reverse };
+    let ink = match (args.target.as_str(), &args.color) {
+        ("hatch_color", Some(text)) => Some(numbers::<f32, 3>("--color", text)?),
+        ("hatch_color", None) => Some(fields::HATCH_COLORS[0]),
+        (_, Some(_)) => bail!("--color is the ink of --target hatch_color"),
+        (_, None) => None,
+    };
+    let spec = ColorMapSpec { map, range, opacity: args.opacity, reverse: args.reverse, ink };
     let lut = Lut::for_field(&spec, &field)?;
     let title = match &args.title {
         Some(title) => title.clone(),
@@ -580,7 +593,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         for run in &scene.styles {
             let passes: Vec<String> = run.passes_ms.iter().map(|(k, v)| format!("{k} {:.1}", v.median)).collect();
             println!(
-                "  {:<14} {:>6.1} ms ({:.1} fps, min {:.1}, max {:.1}); {} triangles = {:.2} % of source; {} plants {:?}; {}",
+                "  {:<14} {:>6.1} ms ({:.1} fps, min {:.1}, max {:.1}); {} triangles = {:.2} % of source; {} plants {:?}; {} reference points; {}",
                 run.style,
                 run.frame_ms.median,
                 run.fps,
@@ -590,6 +603,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 run.percent_drawn,
                 run.plants_drawn,
                 run.per_level,
+                run.reference_points,
                 passes.join(", ")
             );
         }

@@ -481,6 +481,19 @@ try {
     await page.waitForFunction((text) => document.getElementById('time-label').textContent !== text, shown, { timeout: WAIT });
     await page.locator('#time-play').click();
     assert.equal(await page.locator('#time-play').getAttribute('aria-pressed'), 'false', 'paused');
+    // Hatch colour (thesis Fig. 9.3): an ink picker instead of the colour map, the ink in the
+    // link and the legend, a changed picture.
+    const ink = page.locator(`#map-${layerId}-color`);
+    assert.ok(await ink.isHidden(), 'no ink picker for the color target');
+    const coloured = await pixels(page);
+    await stillAfter(page, () => target.selectOption('hatch_color'));
+    assert.ok(await ink.isVisible(), 'an ink picker for hatch_color');
+    assert.ok(await page.locator(`#map-${layerId}-colormap`).isHidden(), 'no colour map for hatch_color');
+    assert.ok(difference(coloured, await pixels(page)) > CHANGED, 'the hatch colour changed the picture');
+    await linked(page, 'mappings', (v) => v && JSON.parse(v)[0].target === 'hatch_color' && JSON.parse(v)[0].color.length === 3);
+    const legend = await page.locator(`li.layer[data-layer="${layerId}"] img.legend`).getAttribute('src');
+    assert.match(legend, /target=hatch_color&color=0\.835%2C0\.369%2C0\b/, 'the legend ramps to the default ink');
+    await stillAfter(page, () => target.selectOption('color'));
   });
 
   await check('copy link → open → same camera; the link renders the same picture over REST', async () => {

@@ -3,9 +3,7 @@
 //! renderer on the render thread ([`LayerCache`]).
 
 use super::error::ApiError;
-use crate::fields::{
-    Clamp, FieldError, Mapping, MappingTarget, TimeSample, format_time, parse_time, validate_mappings,
-};
+use crate::fields::{Clamp, FieldError, Mapping, TimeSample, format_time, parse_time, validate_mappings};
 use crate::render::RenderError;
 use crate::render::projection::{DataLayer, DataMapping, DataView};
 use crate::store::{LayerMeta, Store};
@@ -61,8 +59,9 @@ impl DataRequest {
     }
 
     /// Checks `mappings` and `time` against `store`: unknown layers are 404s, too many
-    /// mappings, a feature other than colour used twice, abstraction, bad ranges and bad
-    /// times 422s; Table 9.1 and clamped times become warnings.
+    /// mappings, a feature other than colour and hatch colour used twice, bad
+    /// ranges, opacities or hatch colours and bad times 422s; Table 9.1 and clamped times become
+    /// warnings.
     pub fn resolve(mappings: &[Mapping], time: Option<&str>, store: &Store) -> Result<DataRequest, ApiError> {
         let metas = mappings
             .iter()
@@ -72,12 +71,6 @@ impl DataRequest {
         let invalid = |e: FieldError| ApiError::invalid("mappings", e.to_string());
         let mut warnings: Vec<String> =
             validate_mappings(mappings, find).map_err(invalid)?.into_iter().map(|w| w.message).collect();
-        if let Some(m) = mappings.iter().find(|m| m.target == MappingTarget::Abstraction) {
-            return Err(ApiError::invalid(
-                "mappings",
-                format!("layer {:?}: abstraction is not drawn by this renderer", m.layer),
-            ));
-        }
         let time = time.map(parse_time).transpose().map_err(|e| ApiError::invalid("time", e.to_string()))?;
         if let Some(t) = time {
             for meta in &metas {

@@ -5,7 +5,7 @@
 use super::AppState;
 use super::auth::Admin;
 use super::error::{ApiError, ErrorBody};
-use crate::fields::{ColorMapName, ColorMapSpec, Legend};
+use crate::fields::{ColorMapName, ColorMapSpec, HATCH_COLORS, Legend, MappingTarget};
 use crate::store::{LayerMeta, StoreError, UploadRequest};
 use axum::Json;
 use axum::body::Bytes;
@@ -22,7 +22,8 @@ pub struct LayerList {
     pub layers: Vec<LayerMeta>,
 }
 
-/// Query parameters of the legend endpoints: how the layer is coloured.
+/// Query parameters of the legend endpoints: how the layer is coloured, or (`target=hatch_color`)
+/// which ink its hatching has.
 #[derive(Debug, Default, Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
@@ -36,6 +37,12 @@ pub struct LegendQuery {
     pub opacity: Option<f32>,
     /// Run the colour map backwards.
     pub reverse: Option<bool>,
+    /// The mapping's target: `hatch_color` draws the ramp from paper to the ink `color`; any
+    /// other target (default `color`) the colour map.
+    pub target: Option<MappingTarget>,
+    /// Ink of a `hatch_color` legend as sRGB `r,g,b`, each 0…1; default the first slot's
+    /// (vermillion).
+    pub color: Option<String>,
 }
 
 impl LegendQuery {
@@ -45,7 +52,8 @@ impl LegendQuery {
         serde_path_to_error::deserialize(parser).map_err(query_error)
     }
 
-    /// The colour-map specification, checked: opacity within 0…1, two distinct finite range ends.
+    /// The colour-map specification, checked: opacity within 0…1, two distinct finite range ends,
+    /// an ink of three components within 0…1 and only for `hatch_color`.
     pub fn spec(&self) -> Result<ColorMapSpec, ApiError> {
         let range = match &self.range {
             Some(text) => {
@@ -70,7 +78,26 @@ impl LegendQuery {
         if !(0.0..=1.0).contains(&opacity) {
             return Err(ApiError::invalid("opacity", format!("opacity {opacity} must be within 0…1")));
         }
-        Ok(ColorMapSpec { map: self.colormap, range, opacity, reverse: self.reverse.unwrap_or(false) })
+        let ink = match (self.target, &self.color) {
+            (Some(MappingTarget::HatchColor), None) => Some(HATCH_COLORS[0]),
+            (Some(MappingTarget::HatchColor), Some(text)) => {
+                let rgb = match text.split(',').map(|v| v.trim().parse::<f32>()).collect::<Result<Vec<_>, _>>() {
+                    Ok(c) if c.len() == 3 && c.iter().all(|v| (0.0..=1.0).contains(v)) => [c[0], c[1], c[2]],
+                    _ => {
+                        return Err(ApiError::invalid(
+                            "color",
+                            format!("color {text:?} must read r,g,b with sRGB components within 0…1"),
+                        ));
+                    }
+                };
+                Some(rgb)
+            }
+            (_, Some(_)) => {
+                return Err(ApiError::invalid("color", "color is the ink of target=hatch_color legends only"));
+            }
+            (_, None) => None,
+        };
+        Ok(ColorMapSpec { map: self.colormap, range, opacity, reverse: self.reverse.unwrap_or(false), ink })
     }
 }
 
@@ -299,9 +326,23 @@ mod tests {
             .expect("valid query");
         assert_eq!(
             spec,
-            ColorMapSpec { map: Some(ColorMapName::Magma), range: Some([0.0, 10.0]), opacity: 0.5, reverse: true }
+            ColorMapSpec {
+                map: Some(ColorMapName::Magma),
+                range: Some([0.0, 10.0]),
+                opacity: 0.5,
+                reverse: true,
+                ink: None
+            }
         );
+        let hatch = |query| LegendQuery::from_query(query).and_then(|q| q.spec()).expect(query).ink;
+        assert_eq!(hatch("target=hatch_color&color=0,0.5,1"), Some([0.0, 0.5, 1.0]));
+        assert_eq!(hatch("target=hatch_color"), Some(HATCH_COLORS[0]));
+        assert_eq!(hatch("target=hatch_tone"), None);
         for (query, parameter) in [
+            ("target=hatch_color&color=1,0", Some("color")),
+            ("target=hatch_color&color=0,2,0", Some("color")),
+            ("color=1,0,0", Some("color")),
+            ("target=sparkles", Some("target")),
             ("colormap=plaid", Some("colormap")),
             ("range=1", Some("range")),
             ("range=2,2", Some("range")),

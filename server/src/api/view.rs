@@ -324,10 +324,10 @@ pub struct ViewParams {
     #[schema(value_type = Option<Object>)]
     pub layer_styles: Option<Map<String, Value>>,
     /// Data layers shown in the view (D3/D4): up to 3 `{"layer": id, "target": "color" |
-    /// "hatch_tone" | "hatch_pattern" | "silhouette_style" | "silhouette_density", "range":
-    /// [lo, hi], "colormap": name, "opacity": 0..1, "reverse": bool}`.
+    /// "hatch_tone" | "hatch_color" | "hatch_pattern" | "silhouette_style" |
+    /// "silhouette_density", "range": [lo, hi], "colormap": name, "opacity": 0..1, "reverse":
+    /// bool, "color": [r, g, b]}` (`color`: the sRGB ink of a `hatch_color` mapping).
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<Object>>)]
     pub mappings: Option<Vec<Mapping>>,
     /// ISO 8601 time of the data layers (D5; default: each layer's first step).
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -104,7 +104,6 @@ pub enum ClientMessage {
     Data {
         /// Up to 3 mappings of stored layers onto visual features.
         #[serde(default)]
-        #[schema(value_type = Vec<Object>)]
         mappings: Vec<Mapping>,
         /// Time of the data layers.
         #[serde(default)]

@@ -231,7 +231,8 @@ impl fmt::Display for ColorMapName {
     }
 }
 
-/// How a field is coloured: map, value range, opacity, direction.
+/// How a field is coloured: map, value range, opacity, direction — or, for a hatch-colour
+/// mapping, a ramp from paper to its ink.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ColorMapSpec {
@@ -243,17 +244,21 @@ pub struct ColorMapSpec {
     pub opacity: f32,
     /// Run the map backwards.
     pub reverse: bool,
+    /// Ink colour (sRGB, each 0…1) of a `hatch_color` mapping (thesis Fig. 9.3): the table
+    /// ramps from paper (white) at the low end to the ink at the high end instead of following
+    /// `map`.
+    pub ink: Option<[f32; 3]>,
 }
 
 impl Default for ColorMapSpec {
-    /// Default map for the kind, the data range, opacity 1, not reversed.
+    /// Default map for the kind, the data range, opacity 1, not reversed, no ink.
     fn default() -> ColorMapSpec {
-        ColorMapSpec { map: None, range: None, opacity: 1.0, reverse: false }
+        ColorMapSpec { map: None, range: None, opacity: 1.0, reverse: false, ink: None }
     }
 }
 
 impl ColorMapSpec {
-    /// Checks opacity (0…1) and range (finite, distinct ends).
+    /// Checks opacity (0…1), range (finite, distinct ends) and ink (sRGB 0…1).
     pub fn validate(&self) -> Result<(), FieldError> {
         if !(0.0..=1.0).contains(&self.opacity) {
             return Err(FieldError::Invalid(format!("opacity {} must be within 0…1", self.opacity)));
@@ -263,15 +268,38 @@ impl ColorMapSpec {
         {
             return Err(FieldError::Invalid(format!("range [{lo}, {hi}] needs two different finite values")));
         }
+        if let Some(ink) = self.ink {
+            check_srgb(ink).map_err(|e| FieldError::Invalid(format!("ink {e}")))?;
+        }
         Ok(())
     }
+}
+
+/// Checks an sRGB colour of three components within 0…1; the error reads "[r, g, b] must …".
+pub fn check_srgb(rgb: [f32; 3]) -> Result<(), FieldError> {
+    if rgb.iter().all(|c| (0.0..=1.0).contains(c)) {
+        Ok(())
+    } else {
+        Err(FieldError::Invalid(format!(
+            "[{}, {}, {}] must be three sRGB components within 0…1",
+            rgb[0], rgb[1], rgb[2]
+        )))
+    }
+}
+
+/// An sRGB colour 0…1 as bytes.
+fn srgb_bytes(rgb: [f32; 3]) -> [u8; 3] {
+    // Clamped to 0..=255 before the cast.
+    rgb.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)
 }
 
 /// A colour look-up table of [`LUT_SIZE`] RGBA entries (8-bit sRGB, alpha = opacity).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Lut {
-    /// The map used.
-    pub map: ColorMapName,
+    /// The map used; `None` for the ink ramp of a hatch colour ([`ColorMapSpec::ink`]).
+    pub map: Option<ColorMapName>,
+    /// The ink of an ink ramp, 8-bit sRGB.
+    pub ink: Option<[u8; 3]>,
     /// Scalars: values at entries 0 and 255 (`lo` may exceed `hi` for a reversed range).
     /// Labels: `None`.
     pub range: Option<[f64; 2]>,
@@ -279,6 +307,12 @@ pub struct Lut {
     pub colors: Vec<[u8; 4]>,
     /// Colour for nodata cells (fully transparent: the sketch shows through).
     pub nodata: [u8; 4],
+}
+
+/// Entry `t` (0…1 along the range or the classes) of an ink ramp: paper (white) to `ink`.
+fn ink_at(ink: [u8; 3], t: f64) -> [u8; 3] {
+    // A mix of two bytes stays within 0..=255.
+    ink.map(|c| (255.0 + (f64::from(c) - 255.0) * t.clamp(0.0, 1.0)).round() as u8)
 }
 
 impl Lut {
@@ -292,11 +326,12 @@ impl Lut {
     }
 
     /// A scalar table from `data_range` (used when the spec has no range). A categorical map
-    /// gives stepped bands; the file palette is an error for scalars.
+    /// gives stepped bands; the file palette is an error for scalars. With an ink, the table
+    /// ramps from paper to it.
     pub fn for_scalar(spec: &ColorMapSpec, data_range: (f64, f64)) -> Result<Lut, FieldError> {
         spec.validate()?;
         let map = spec.map.unwrap_or(ColorMapName::Viridis);
-        if map == ColorMapName::File {
+        if map == ColorMapName::File && spec.ink.is_none() {
             return Err(FieldError::Invalid("the file palette colours label fields only".into()));
         }
         let [mut lo, mut hi] = spec.range.unwrap_or([data_range.0, data_range.1]);
@@ -308,33 +343,40 @@ impl Lut {
             (lo, hi) = (lo - 0.5, hi + 0.5);
         }
         let alpha = opacity_byte(spec.opacity);
+        let ink = spec.ink.map(srgb_bytes);
         let colors = (0..LUT_SIZE)
             .map(|i| {
                 let t = i as f64 / (LUT_SIZE - 1) as f64;
-                let [r, g, b] = map.at(if spec.reverse { 1.0 - t } else { t });
+                let t = if spec.reverse { 1.0 - t } else { t };
+                let [r, g, b] = ink.map_or_else(|| map.at(t), |ink| ink_at(ink, t));
                 [r, g, b, alpha]
             })
             .collect();
-        Ok(Lut { map, range: Some([lo, hi]), colors, nodata: [0; 4] })
+        let map = ink.is_none().then_some(map);
+        Ok(Lut { map, ink, range: Some([lo, hi]), colors, nodata: [0; 4] })
     }
 
     /// A label table: entry i is the colour of class i (`classes` sorted by value, as in
-    /// [`Field::classes`]); unused entries are transparent.
+    /// [`Field::classes`]); unused entries are transparent. With an ink, class i of n is
+    /// i / (n − 1) of the way from paper to it.
     pub fn for_labels(spec: &ColorMapSpec, classes: &[ClassInfo]) -> Result<Lut, FieldError> {
         spec.validate()?;
         let map = spec.map.unwrap_or(ColorMapName::Tableau10);
         let alpha = opacity_byte(spec.opacity);
+        let ink = spec.ink.map(srgb_bytes);
         let n = classes.len().min(LUT_SIZE);
         let mut colors = vec![[0u8; 4]; LUT_SIZE];
         for (i, class) in classes.iter().take(LUT_SIZE).enumerate() {
             let j = if spec.reverse { n - 1 - i } else { i };
-            let [r, g, b] = match (map, class.color) {
-                (ColorMapName::File, Some(c)) => c,
+            let [r, g, b] = match (ink, map, class.color) {
+                (Some(ink), _, _) => ink_at(ink, j as f64 / (n.max(2) - 1) as f64),
+                (None, ColorMapName::File, Some(c)) => c,
                 _ => map.class_color(j, n),
             };
             colors[i] = [r, g, b, alpha];
         }
-        Ok(Lut { map, range: None, colors, nodata: [0; 4] })
+        let map = ink.is_none().then_some(map);
+        Ok(Lut { map, ink, range: None, colors, nodata: [0; 4] })
     }
 
     /// The table index of a value: scalars by the range (clamped), labels by the value as an
@@ -413,5 +455,21 @@ mod tests {
         );
         assert!(ColorMapSpec { opacity: 1.5, ..Default::default() }.validate().is_err());
         assert!(ColorMapSpec { range: Some([1.0, 1.0]), ..Default::default() }.validate().is_err());
+    }
+
+    #[test]
+    fn ink_ramps_run_from_paper_to_the_ink() {
+        let ink = ColorMapSpec { ink: Some([1.0, 0.0, 0.0]), ..Default::default() };
+        let lut = Lut::for_scalar(&ink, (0.0, 10.0)).unwrap();
+        assert_eq!((lut.map, lut.ink), (None, Some([255, 0, 0])));
+        assert_eq!((lut.colors[0], lut.colors[255]), ([255, 255, 255, 255], [255, 0, 0, 255]));
+        assert_eq!(lut.color_of(5.0), [255, 127, 127, 255]);
+        let reversed = Lut::for_scalar(&ColorMapSpec { reverse: true, ..ink.clone() }, (0.0, 10.0)).unwrap();
+        assert_eq!(reversed.colors[0], [255, 0, 0, 255]);
+        let class = |value| ClassInfo { value, count: 1, name: None, color: None };
+        let labels = Lut::for_labels(&ink, &[class(1), class(2), class(3)]).unwrap();
+        assert_eq!(labels.colors[..3], [[255, 255, 255, 255], [255, 128, 128, 255], [255, 0, 0, 255]]);
+        let bad = ColorMapSpec { ink: Some([0.0, 1.5, 0.0]), ..Default::default() };
+        assert!(bad.validate().unwrap_err().to_string().contains("within 0…1"));
     }
 }

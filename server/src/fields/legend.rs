@@ -1,6 +1,8 @@
 //! D3 legends, drawn on the CPU: a colour bar with tick labels for scalar fields, class
 //! swatches with names for label fields, as a PNG ([`Legend::to_png`]) and as a JSON
-//! description (the [`Legend`] itself serialises: colours, classes, range, units).
+//! description (the [`Legend`] itself serialises: colours, classes, range, units). The legend
+//! of a `hatch_color` mapping is the ramp from paper to its ink
+//! ([`ColorMapSpec::ink`](super::ColorMapSpec::ink)).
 //!
 //! Text uses the X11 `misc-fixed` 7×13 bitmap font (ISO 8859-1, public domain) shipped inside
 //! the `embedded-graphics` crate, so no font file is needed. Colours are drawn at the map's
@@ -19,6 +21,7 @@ use serde::Serialize;
 use super::FieldError;
 use super::colormap::{ColorMapName, LUT_SIZE, Lut};
 use super::field::{ClassInfo, FieldKind};
+use super::mapping::MappingTarget;
 
 /// One labelled tick of a colour bar.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
@@ -56,8 +59,15 @@ pub struct Legend {
     /// Units of the values, if known.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub units: Option<String>,
-    /// The colour map.
-    pub colormap: ColorMapName,
+    /// The feature shown: `color` (a colour map) or `hatch_color` (the darkness of a hatching
+    /// in one ink colour).
+    pub target: MappingTarget,
+    /// The colour map (`color`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub colormap: Option<ColorMapName>,
+    /// The ink colour, `#rrggbb` (`hatch_color`): the bar runs from paper to it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub color: Option<String>,
     /// Opacity of the colours over the sketch, 0…1.
     pub opacity: f32,
     /// Scalars: values at the two ends of the bar.
@@ -94,7 +104,7 @@ const SWATCH: i32 = 14;
 
 impl Legend {
     /// A legend for a field described by its kind, units and classes, coloured by `lut`
-    /// (which holds the map, range and opacity).
+    /// (which holds the map or ink, range and opacity).
     pub fn new(title: &str, kind: FieldKind, units: Option<&str>, classes: &[ClassInfo], lut: &Lut) -> Legend {
         let hex = |c: [u8; 4]| format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
         let opacity = f32::from(lut.colors.iter().map(|c| c[3]).max().unwrap_or(255)) / 255.0;
@@ -128,7 +138,9 @@ impl Legend {
             title: title.to_string(),
             kind,
             units: units.map(str::to_string),
+            target: if lut.ink.is_some() { MappingTarget::HatchColor } else { MappingTarget::Color },
             colormap: lut.map,
+            color: lut.ink.map(|[r, g, b]| hex([r, g, b, 255])),
             opacity,
             range: if kind == FieldKind::Scalar { lut.range } else { None },
             ticks,
@@ -361,5 +373,22 @@ mod tests {
         let json = serde_json::to_value(&legend).unwrap();
         assert_eq!(json["units"], "°C");
         assert_eq!(json["range"], serde_json::json!([0.0, 10.0]));
+        assert_eq!((json["target"].as_str(), json["colormap"].as_str()), (Some("color"), Some("viridis")));
+        assert!(json.get("color").is_none(), "{json}");
+    }
+
+    #[test]
+    fn hatch_color_legend_ramps_from_paper_to_the_ink() {
+        let spec = ColorMapSpec { ink: Some([0.0, 0.0, 1.0]), ..Default::default() };
+        let lut = Lut::for_scalar(&spec, (0.0, 4.0)).unwrap();
+        let legend = Legend::new("rain", FieldKind::Scalar, Some("mm"), &[], &lut);
+        let img = legend.to_image();
+        let y = (BAR_TOP + 5) as u32;
+        assert_eq!(img.get_pixel(MARGIN as u32, y).0, [255, 255, 255, 255], "paper at the low end");
+        assert_eq!(img.get_pixel(LEGEND_WIDTH - MARGIN as u32 - 1, y).0, [0, 0, 255, 255], "ink at the high end");
+        let json = serde_json::to_value(&legend).unwrap();
+        assert_eq!((json["target"].as_str(), json["color"].as_str()), (Some("hatch_color"), Some("#0000ff")));
+        assert!(json.get("colormap").is_none(), "{json}");
+        assert_eq!(json["stops"][15], "#0000ff");
     }
 }

@@ -6,27 +6,35 @@
 //! | silhouette density | • binary label fields (presence/absence) | ◦ ambiguous, not suitable |
 //! | silhouette style | •• one style per label | ◦ not quantifiable |
 //! | hatch tone | • ambiguous except binary label fields | • low and medium precision |
+//! | hatch colour (tone of a coloured hatching) | • as hatch tone | • as hatch tone |
 //! | hatch pattern | •• one pattern per label | ◦ not quantifiable |
 //! | colour | •• one colour per label | •• best suited, with an application colour map |
 //!
 //! •• well suited, • limited, ◦ unsuitable. An unsuitable combination (and a "binary only"
 //! one used with more than two classes) gives a [`Severity::Unsuitable`] warning, a limited
 //! one for scalars a [`Severity::Caution`] — warnings, never silent changes or errors. Up to
-//! [`MAX_MAPPINGS`] fields can be shown at once (D4, thesis 9.2.2); colour may be used by
-//! several of them (e.g. three scalars as three hatch colours, Fig. 9.3), every other feature
-//! by one.
+//! [`MAX_MAPPINGS`] fields can be shown at once (D4, thesis 9.2.2); colour and hatch colour
+//! may be used by several of them, every other feature by one. Three scalars as three hatch
+//! colours give every field equal visual importance (thesis 9.2.2, Fig. 9.3): each drives the
+//! darkness of a hatching in its own ink colour ([`Mapping::color`], by default
+//! [`HATCH_COLORS`] of its slot) and its own stroke direction.
 
 use serde::{Deserialize, Serialize};
 
 use super::FieldError;
-use super::colormap::{ColorMapName, ColorMapSpec};
+use super::colormap::{ColorMapName, ColorMapSpec, check_srgb};
 use super::field::FieldKind;
 
 /// Most fields mapped at once (D4).
 pub const MAX_MAPPINGS: usize = 3;
 
+/// Default ink colours (sRGB 0…1) of [`MappingTarget::HatchColor`] mappings by slot (the
+/// mapping's position in the request): the Okabe–Ito vermillion, blue and bluish green, told
+/// apart also with the common colour-vision deficiencies.
+pub const HATCH_COLORS: [[f32; 3]; MAX_MAPPINGS] = [[0.835, 0.369, 0.0], [0.0, 0.447, 0.698], [0.0, 0.620, 0.451]];
+
 /// A visual feature a field can drive.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MappingTarget {
     /// Colour of the sketch (colour maps). Also accepted as `colour`.
@@ -34,6 +42,9 @@ pub enum MappingTarget {
     Color,
     /// Hatching tone (darkness).
     HatchTone,
+    /// Darkness of a hatching in the mapping's own ink colour and stroke direction (thesis
+    /// 9.2.2, Fig. 9.3: several scalars as hatchings of different colours).
+    HatchColor,
     /// Hatching pattern: one tonal art map per label.
     HatchPattern,
     /// Silhouette style: one stroke style (SAM channel) per label.
@@ -45,21 +56,29 @@ pub enum MappingTarget {
 }
 
 /// Every target, in Table 9.1 order.
-pub const ALL_TARGETS: [MappingTarget; 6] = [
+pub const ALL_TARGETS: [MappingTarget; 7] = [
     MappingTarget::Abstraction,
     MappingTarget::SilhouetteDensity,
     MappingTarget::SilhouetteStyle,
     MappingTarget::HatchTone,
+    MappingTarget::HatchColor,
     MappingTarget::HatchPattern,
     MappingTarget::Color,
 ];
 
 impl MappingTarget {
+    /// Whether several mappings may drive this feature at once (colour tints multiply, hatch
+    /// colours each draw their own hatching); every other feature takes one field.
+    pub fn is_shared(&self) -> bool {
+        matches!(self, MappingTarget::Color | MappingTarget::HatchColor)
+    }
+
     /// The name as in JSON (`hatch_tone`, …).
     pub fn as_str(&self) -> &'static str {
         match self {
             MappingTarget::Color => "color",
             MappingTarget::HatchTone => "hatch_tone",
+            MappingTarget::HatchColor => "hatch_color",
             MappingTarget::HatchPattern => "hatch_pattern",
             MappingTarget::SilhouetteStyle => "silhouette_style",
             MappingTarget::SilhouetteDensity => "silhouette_density",
@@ -100,6 +119,10 @@ pub fn suitability(target: MappingTarget, kind: FieldKind) -> (Suitability, &'st
             (Limited, "hatch tone is ambiguous except for binary label fields (presence/absence of hatching)")
         }
         (HatchTone, Scalar) => (Limited, "hatch tone suits low- and medium-precision data"),
+        (HatchColor, Label) => {
+            (Limited, "the tone of a coloured hatching is ambiguous except for binary label fields (presence/absence)")
+        }
+        (HatchColor, Scalar) => (Limited, "the tone of a coloured hatching suits low- and medium-precision data"),
         (HatchPattern, Label) => (Good, "each hatch pattern can represent a label"),
         (HatchPattern, Scalar) => (Unsuitable, "hatch pattern is not quantifiable"),
         (Color, Label) => (Good, "each label can be represented by a different colour"),
@@ -133,7 +156,7 @@ pub struct MappingWarning {
 }
 
 /// One field shown through one visual feature.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Mapping {
     /// Layer id.
@@ -153,6 +176,10 @@ pub struct Mapping {
     /// Map high values to the low end.
     #[serde(default)]
     pub reverse: bool,
+    /// Ink colour (sRGB, each 0…1) of a [`MappingTarget::HatchColor`] mapping; default
+    /// [`HATCH_COLORS`] of its slot. Other targets take none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub color: Option<[f32; 3]>,
 }
 
 fn one() -> f32 {
@@ -162,19 +189,35 @@ fn one() -> f32 {
 impl Mapping {
     /// A mapping of `layer` onto `target` with defaults.
     pub fn new(layer: &str, target: MappingTarget) -> Mapping {
-        Mapping { layer: layer.to_string(), target, range: None, colormap: None, opacity: 1.0, reverse: false }
+        Mapping {
+            layer: layer.to_string(),
+            target,
+            range: None,
+            colormap: None,
+            opacity: 1.0,
+            reverse: false,
+            color: None,
+        }
     }
 
-    /// The colour-map part of the mapping.
-    pub fn color_spec(&self) -> ColorMapSpec {
-        ColorMapSpec { map: self.colormap, range: self.range, opacity: self.opacity, reverse: self.reverse }
+    /// The colour-map part of the mapping; for a hatch colour, the ramp from paper to its ink
+    /// in `slot` (the legend's colours).
+    pub fn color_spec(&self, slot: usize) -> ColorMapSpec {
+        let ink = (self.target == MappingTarget::HatchColor).then(|| self.hatch_color(slot));
+        ColorMapSpec { map: self.colormap, range: self.range, opacity: self.opacity, reverse: self.reverse, ink }
+    }
+
+    /// The ink colour of a hatch-colour mapping in `slot` (its position in the request): its
+    /// own [`Mapping::color`] or the slot's default of [`HATCH_COLORS`].
+    pub fn hatch_color(&self, slot: usize) -> [f32; 3] {
+        self.color.unwrap_or(HATCH_COLORS[slot % MAX_MAPPINGS])
     }
 }
 
 /// Checks up to [`MAX_MAPPINGS`] mappings: `layer` gives a layer id's kind and number of
 /// classes (`None`: unknown id). Errors for too many mappings, unknown layers, a feature other
-/// than colour used twice, bad ranges/opacity or the file palette on a scalar; warnings per
-/// Table 9.1 otherwise.
+/// than colour and hatch colour used twice, bad ranges/opacity/colours, a colour on another
+/// target than hatch colour or the file palette on a scalar; warnings per Table 9.1 otherwise.
 pub fn validate_mappings(
     mappings: &[Mapping],
     layer: impl Fn(&str) -> Option<(FieldKind, usize)>,
@@ -189,13 +232,22 @@ pub fn validate_mappings(
     for (index, m) in mappings.iter().enumerate() {
         let (kind, classes) = layer(&m.layer)
             .ok_or_else(|| FieldError::Invalid(format!("mapping {index}: unknown layer \"{}\"", m.layer)))?;
-        if m.target != MappingTarget::Color && mappings[..index].iter().any(|o| o.target == m.target) {
+        if !m.target.is_shared() && mappings[..index].iter().any(|o| o.target == m.target) {
             return Err(FieldError::Invalid(format!(
-                "mapping {index}: {} is already driven by another field (only color can be shared)",
+                "mapping {index}: {} is already driven by another field (only color and hatch_color can be shared)",
                 m.target.as_str()
             )));
         }
-        m.color_spec().validate().map_err(|e| FieldError::Invalid(format!("mapping {index}: {e}")))?;
+        if let Some(color) = m.color {
+            if m.target != MappingTarget::HatchColor {
+                return Err(FieldError::Invalid(format!(
+                    "mapping {index}: \"color\" is the ink of a hatch_color mapping; {} takes none (use colormap)",
+                    m.target.as_str()
+                )));
+            }
+            check_srgb(color).map_err(|e| FieldError::Invalid(format!("mapping {index}: color {e}")))?;
+        }
+        m.color_spec(index).validate().map_err(|e| FieldError::Invalid(format!("mapping {index}: {e}")))?;
         if kind == FieldKind::Scalar && m.colormap == Some(ColorMapName::File) {
             return Err(FieldError::Invalid(format!("mapping {index}: the file palette colours label fields only")));
         }
@@ -283,9 +335,54 @@ mod tests {
                 .to_string()
                 .contains("unknown layer")
         );
+        // Three scalars as three hatch colours (Fig. 9.3): hatch colour may be shared like colour.
+        let hatchings = [
+            Mapping::new("tas", MappingTarget::HatchColor),
+            Mapping::new("tas", MappingTarget::HatchColor),
+            Mapping::new("fire", MappingTarget::HatchColor),
+        ];
+        let w = validate_mappings(&hatchings, layers).unwrap();
+        assert_eq!(
+            w.iter().map(|w| (w.index, w.severity)).collect::<Vec<_>>(),
+            [(0, Severity::Caution), (1, Severity::Caution)]
+        );
         let m: Mapping =
             serde_json::from_str(r#"{"layer":"tas","target":"colour","colormap":"magma","opacity":0.5}"#).unwrap();
         assert_eq!((m.target, m.colormap, m.opacity), (MappingTarget::Color, Some(ColorMapName::Magma), 0.5));
         assert!(serde_json::from_str::<Mapping>(r#"{"layer":"tas","target":"color","bogus":1}"#).is_err());
+    }
+
+    #[test]
+    fn hatch_color_is_rated_like_hatch_tone() {
+        for kind in [FieldKind::Scalar, FieldKind::Label] {
+            assert_eq!(suitability(MappingTarget::HatchColor, kind).0, suitability(MappingTarget::HatchTone, kind).0);
+        }
+        assert!(ALL_TARGETS.contains(&MappingTarget::HatchColor));
+        let tas = validate_mappings(&[Mapping::new("tas", MappingTarget::HatchColor)], layers).unwrap();
+        assert_eq!(tas[0].severity, Severity::Caution);
+        assert!(tas[0].message.contains("hatch_color") && tas[0].message.contains("Table 9.1"), "{}", tas[0].message);
+        assert!(validate_mappings(&[Mapping::new("fire", MappingTarget::HatchColor)], layers).unwrap().is_empty());
+        let cover = validate_mappings(&[Mapping::new("cover", MappingTarget::HatchColor)], layers).unwrap();
+        assert_eq!(cover[0].severity, Severity::Unsuitable);
+        assert!(cover[0].message.contains("8 classes"), "{}", cover[0].message);
+    }
+
+    #[test]
+    fn hatch_colors_are_validated_and_default_per_slot() {
+        let parse = |json: &str| serde_json::from_str::<Mapping>(json);
+        let red = parse(r#"{"layer":"tas","target":"hatch_color","color":[1,0,0],"reverse":true}"#).unwrap();
+        assert_eq!((red.color, red.hatch_color(2)), (Some([1.0, 0.0, 0.0]), [1.0, 0.0, 0.0]));
+        assert_eq!(red.color_spec(0).ink, Some([1.0, 0.0, 0.0]));
+        let plain = Mapping::new("tas", MappingTarget::HatchColor);
+        assert_eq!((0..3).map(|slot| plain.hatch_color(slot)).collect::<Vec<_>>(), HATCH_COLORS);
+        assert_eq!(Mapping::new("tas", MappingTarget::Color).color_spec(0).ink, None);
+        // Serialised without a colour when none was given (view identities stay as they were).
+        assert!(!serde_json::to_string(&plain).unwrap().contains("\"color\""));
+        assert!(parse(r#"{"layer":"tas","target":"hatch_color","color":[1,0]}"#).is_err());
+        let error = |m: Mapping| validate_mappings(&[m], layers).unwrap_err().to_string();
+        let bright = error(Mapping { color: Some([0.2, 1.5, 0.0]), ..plain.clone() });
+        assert!(bright.contains("mapping 0: color [0.2, 1.5, 0]") && bright.contains("within 0…1"), "{bright}");
+        let misplaced = error(Mapping { color: Some([1.0, 0.0, 0.0]), ..Mapping::new("tas", MappingTarget::Color) });
+        assert!(misplaced.contains("hatch_color") && misplaced.contains("colormap"), "{misplaced}");
     }
 }

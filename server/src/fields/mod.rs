@@ -32,7 +32,9 @@ pub mod source;
 pub use colormap::{ColorMapName, ColorMapSpec, LUT_SIZE, Lut};
 pub use field::{ClassInfo, Field, FieldKind, FieldStep, MAX_LABEL_CLASSES};
 pub use legend::Legend;
-pub use mapping::{MAX_MAPPINGS, Mapping, MappingTarget, MappingWarning, Severity, Suitability, validate_mappings};
+pub use mapping::{
+    HATCH_COLORS, MAX_MAPPINGS, Mapping, MappingTarget, MappingWarning, Severity, Suitability, validate_mappings,
+};
 pub use reproject::{FieldGrid, GridSpec, SceneGeo};
 pub use series::{Clamp, TimeSample, format_time, parse_time};
 pub use source::{FieldFormat, LoadOptions, load_bytes, load_file, load_series};

@@ -153,16 +153,19 @@ fn decode(bytes: &[u8], model: &PlantModel) -> Option<Hlps> {
 }
 
 /// A mesh whose vertices each belong to one HLP: vertices shared by triangles of different
-/// HLPs are duplicated. `hlp[i]` is the HLP index of vertex `i`.
+/// HLPs are duplicated. `hlp[i]` is the HLP index of vertex `i`, `source[i]` the vertex of the
+/// original mesh it copies (for per-vertex data computed on the original, e.g.
+/// [`super::implicit::Illumination`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct HlpMesh {
     pub mesh: Mesh,
     pub hlp: Vec<u32>,
+    pub source: Vec<u32>,
 }
 
 /// Splits `mesh` so every vertex has exactly one HLP, given the HLP of every triangle.
 pub fn split_by_hlp(mesh: &Mesh, triangle_hlp: &[u32]) -> HlpMesh {
-    let mut out = HlpMesh { mesh: Mesh::default(), hlp: Vec::new() };
+    let mut out = HlpMesh { mesh: Mesh::default(), hlp: Vec::new(), source: Vec::new() };
     let mut remap: HashMap<(u32, u32), u32> = HashMap::new();
     for (tri, &h) in mesh.indices.chunks_exact(3).zip(triangle_hlp) {
         for &v in tri {
@@ -172,6 +175,7 @@ pub fn split_by_hlp(mesh: &Mesh, triangle_hlp: &[u32]) -> HlpMesh {
                 out.mesh.normals.push(mesh.normals.get(i).copied().unwrap_or([0.0, 0.0, 1.0]));
                 out.mesh.uvs.push(mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]));
                 out.hlp.push(h);
+                out.source.push(v);
                 (out.hlp.len() - 1) as u32
             });
             out.mesh.indices.push(index);
@@ -257,6 +261,7 @@ mod tests {
         let split = split_by_hlp(&mesh, &[0, 1]);
         assert_eq!(split.mesh.positions.len(), 6);
         assert_eq!(split.hlp, vec![0, 0, 0, 1, 1, 1]);
+        assert_eq!(split.source, vec![0, 1, 2, 2, 1, 3]);
         let same = split_by_hlp(&mesh, &[0, 0]);
         assert_eq!(same.mesh.positions.len(), 4);
         let mut reordered = split_by_hlp(&mesh, &[1, 0]);

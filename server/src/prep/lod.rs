@@ -47,6 +47,9 @@ pub struct LodSettings {
     pub hlp_px: f32,
     /// Plants smaller than this are not drawn.
     pub min_px: f32,
+    /// Plants drawn as one billboard and smaller than this share the reference point of their
+    /// terrain-grid cell for hatching and silhouettes (thesis 7.3), larger ones have their own.
+    pub grid_px: f32,
     /// Half-width of the blend band around each threshold, relative to it (0 = hard switch).
     pub fade: f32,
     /// Draw every plant at this level (for tests and comparisons); `None` selects by size.
@@ -55,7 +58,7 @@ pub struct LodSettings {
 
 impl Default for LodSettings {
     fn default() -> Self {
-        LodSettings { full_px: 160.0, hlp_px: 40.0, min_px: 0.75, fade: 0.2, force: None }
+        LodSettings { full_px: 160.0, hlp_px: 40.0, min_px: 0.75, grid_px: 12.0, fade: 0.2, force: None }
     }
 }
 
@@ -74,8 +77,14 @@ impl LodSettings {
             && self.hlp_px >= self.min_px
             && self.full_px >= self.hlp_px
             && self.full_px.is_finite()
+            && (0.0..=self.hlp_px).contains(&self.grid_px)
             && (0.0..0.5).contains(&self.fade);
-        if ok { Ok(()) } else { Err("LOD thresholds need 0 <= min_px <= hlp_px <= full_px and 0 <= fade < 0.5".into()) }
+        if ok {
+            Ok(())
+        } else {
+            Err("LOD thresholds need 0 <= min_px <= hlp_px <= full_px, 0 <= grid_px <= hlp_px and 0 <= fade < 0.5"
+                .into())
+        }
     }
 
     /// The draws of a plant that is `px` pixels tall on screen: none below `min_px`, one level

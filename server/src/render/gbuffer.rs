@@ -1,6 +1,8 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
 use super::style::{HatchSpace, STYLE_SLOTS, Style};
+use crate::prep::hlp::Sphere;
+use crate::prep::leaves::{CORNERS, Leaf};
 use crate::scene::camera::Camera;
 use bytemuck::{Pod, Zeroable};
 
@@ -107,6 +109,12 @@ pub struct FrameUniform {
 pub struct LayerUniform {
     hlp: [f32; 4],
     hatch: [f32; 4],
+    /// Leaves: mode ([`super::style::LeafMode`] as 0–3), size, shape (α_t from α_max to
+    /// α_min) and outline Δα (thesis eq. 4.1).
+    leaf: [f32; 4],
+    /// Implicit-surface illumination (Luft et al. 2007): x blend towards the implicit normal,
+    /// y ambient occlusion (how much k_a darkens the ambient light).
+    implicit: [f32; 4],
 }
 
 impl LayerUniform {
@@ -116,6 +124,8 @@ impl LayerUniform {
         LayerUniform {
             hlp: [style.normal_blend, image_space, style.hlp_abstraction, style.color_abstraction],
             hatch: [style.hatch_tiles, style.hatch_surface, 0.0, style.image_hatch_scale],
+            leaf: [style.leaf_mode as u32 as f32, style.leaf_size, style.leaf_shape, style.leaf_outline],
+            implicit: [style.implicit_normals, style.ambient_occlusion, 0.0, 0.0],
         }
     }
 }
@@ -152,7 +162,10 @@ impl FrameUniform {
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct MaterialUniform {
     pub base_color: [f32; 4],
-    /// x: alpha cutoff (negative: opaque), y: part kind (0 terrain, 1 wood, 2 foliage).
+    /// x: alpha cutoff (negative: opaque; for foliage α_max of thesis 4.1), y: part kind (0
+    /// terrain, 1 wood, 2 foliage, 3 billboard), z: α_min, the alpha threshold of the most
+    /// abstract leaf shape (foliage; the cutoff elsewhere), w: scale of leaf particles drawn
+    /// as a share of the leaves (√(all / drawn), SPEC P4; 1 elsewhere).
     pub params: [f32; 4],
     /// The material's average colour, linear RGB (abstract colour, thesis 6.2; see
     /// [`average_color`]).
@@ -197,10 +210,68 @@ pub struct Vertex {
     pub hlp: [f32; 4],
     /// HLP index within the model ([`NO_HLP`] without).
     pub hlp_index: u32,
+    /// Foliage: the normal of the implicit surface at the vertex scaled by its ambient
+    /// coefficient, k_a·N_s (Luft et al. 2007 §3.2–3.3, [`crate::prep::implicit`]), in model
+    /// space; billboards: (0, 0, mean k_a of the leaves they stand for), only the length
+    /// counts since they are lit as their HLP sphere; zero ("none") for terrain and wood. The
+    /// paper stores k_a in the length of the replaced vertex normal; this extra attribute keeps
+    /// the original normal as well, so styles blend original, implicit and HLP normals at run
+    /// time (SPEC R6).
+    pub implicit: [f32; 3],
 }
 
 /// HLP index of vertices that belong to no HLP (terrain, wood).
 pub const NO_HLP: u32 = u32::MAX;
+
+/// One corner of a leaf particle as `vs_leaf` reads it (`LeafIn` in `shaders/gbuffer.wgsl`):
+/// the whole leaf rectangle ([`Leaf`]) and which corner this is, so the vertex shader can
+/// place, turn and size the particle for the style of the frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct LeafVertex {
+    /// Leaf centre, model space.
+    pub center: [f32; 3],
+    /// The corner (s, t) ∈ {−1, 1}² (see [`crate::prep::leaves::CORNERS`]).
+    pub corner: [f32; 2],
+    /// The leaf's first in-plane axis times its half size (texture u grows along it).
+    pub axis_u: [f32; 3],
+    /// The second in-plane axis times its half size (texture v grows along it).
+    pub axis_v: [f32; 3],
+    /// Unit leaf normal (front side).
+    pub normal: [f32; 3],
+    /// Texture coordinates of this corner.
+    pub uv: [f32; 2],
+    /// HLP centre (model space) and radius.
+    pub hlp: [f32; 4],
+    /// HLP index within the model.
+    pub hlp_index: u32,
+    /// The share of the rectangle the leaf's texture covers ([`crate::prep::leaves::coverage`]):
+    /// an elliptical leaf keeps that area.
+    pub coverage: f32,
+    /// The implicit-surface illumination k_a·N_s of the leaf (see [`Vertex::implicit`]).
+    pub implicit: [f32; 3],
+}
+
+impl LeafVertex {
+    /// The four corners of `leaf`, whose HLP is `sphere`, whose texture covers `coverage` of
+    /// its rectangle and whose implicit-surface illumination is `implicit`, in the order of
+    /// [`crate::prep::leaves::CORNERS`].
+    pub fn corners(leaf: &Leaf, sphere: Sphere, coverage: f32, implicit: [f32; 3]) -> [LeafVertex; 4] {
+        let [h0, h1] = leaf.half_sizes;
+        std::array::from_fn(|i| LeafVertex {
+            center: leaf.center.to_array(),
+            corner: CORNERS[i],
+            axis_u: (leaf.axes[0] * h0).to_array(),
+            axis_v: (leaf.axes[1] * h1).to_array(),
+            normal: leaf.normal.to_array(),
+            uv: leaf.uv_corners[i],
+            hlp: [sphere.center.x, sphere.center.y, sphere.center.z, sphere.radius.max(1e-3)],
+            hlp_index: leaf.hlp,
+            coverage,
+            implicit,
+        })
+    }
+}
 
 /// One instance of a mesh: placement, uniform scale, rotation about z, object ID and the first
 /// entry of its HLPs in the reference-coordinate buffer.
@@ -214,11 +285,20 @@ pub struct Instance {
     /// Screen-door mask of a level-of-detail blend: pixels whose dither value lies in
     /// `mask[0]..mask[1]` are drawn (`[0, 1]`: all).
     pub mask: [f32; 2],
+    /// A data layer's HLP abstraction for this plant and the weight it replaces the style's
+    /// with (D3 `abstraction`; `[0, 0]`: the style's). The shader reads it with `mask` as one
+    /// vec4 (location 9): every vertex location is taken.
+    pub data_abstraction: [f32; 2],
+    /// A far reference point standing in for the plant's own HLP sphere in the hatching and
+    /// silhouette parametrizations (world centre, radius; radius 0: the plant's own, thesis 7.3).
+    pub reference_sphere: [f32; 4],
 }
 
 /// The geometry pass pipeline and the bind group layouts meshes and frames are bound with.
 pub struct GeometryPass {
     pub pipeline: wgpu::RenderPipeline,
+    /// The pipeline drawing leaf particles (`vs_leaf`, SPEC R1, R2).
+    pub leaf_pipeline: wgpu::RenderPipeline,
     pub frame_layout: wgpu::BindGroupLayout,
     pub material_layout: wgpu::BindGroupLayout,
     pub sampler: wgpu::Sampler,
@@ -302,55 +382,73 @@ impl GeometryPass {
             bind_group_layouts: &[Some(&frame_layout), Some(&material_layout)],
             immediate_size: 0,
         });
-        let vertex_attrs =
-            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x4, 4 => Uint32];
-        let instance_attrs =
-            wgpu::vertex_attr_array![5 => Float32x4, 6 => Float32x2, 7 => Uint32, 8 => Uint32, 9 => Float32x2];
+        let vertex_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x4, 4 => Uint32, 13 => Float32x3];
+        let instance_attrs = wgpu::vertex_attr_array![5 => Float32x4, 6 => Float32x2, 7 => Uint32, 8 => Uint32, 9 => Float32x4, 15 => Float32x4];
         let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("gbuffer"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: std::mem::size_of::<Vertex>() as u64,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &vertex_attrs,
-                    }),
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: std::mem::size_of::<Instance>() as u64,
-                        step_mode: wgpu::VertexStepMode::Instance,
-                        attributes: &instance_attrs,
-                    }),
-                ],
+        // Both pipelines share the instances, the fragment shader and the targets; they differ
+        // in their vertices: mesh vertices (`vs_main`) or leaf-particle corners (`vs_leaf`).
+        let pipeline_with = |label, entry_point, vertices: wgpu::VertexBufferLayout<'_>| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some(entry_point),
+                    compilation_options: Default::default(),
+                    buffers: &[
+                        Some(vertices),
+                        Some(wgpu::VertexBufferLayout {
+                            array_stride: std::mem::size_of::<Instance>() as u64,
+                            step_mode: wgpu::VertexStepMode::Instance,
+                            attributes: &instance_attrs,
+                        }),
+                    ],
+                },
+                primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[
+                        target(ALBEDO_FORMAT),
+                        target(NORMAL_FORMAT),
+                        target(LINEAR_DEPTH_FORMAT),
+                        target(ID_FORMAT),
+                        target(HATCH_FORMAT),
+                    ],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let pipeline = pipeline_with(
+            "gbuffer",
+            "vs_main",
+            wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<Vertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &vertex_attrs,
             },
-            primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[
-                    target(ALBEDO_FORMAT),
-                    target(NORMAL_FORMAT),
-                    target(LINEAR_DEPTH_FORMAT),
-                    target(ID_FORMAT),
-                    target(HATCH_FORMAT),
-                ],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        );
+        let leaf_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x2, 2 => Float32x3, 3 => Float32x3,
+            4 => Float32x3, 10 => Float32x2, 11 => Float32x4, 12 => Uint32, 13 => Float32, 14 => Float32x3];
+        let leaf_pipeline = pipeline_with(
+            "gbuffer leaves",
+            "vs_leaf",
+            wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<LeafVertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &leaf_attrs,
+            },
+        );
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("material"),
             address_mode_u: wgpu::AddressMode::Repeat,
@@ -360,7 +458,7 @@ impl GeometryPass {
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
-        GeometryPass { pipeline, frame_layout, material_layout, sampler }
+        GeometryPass { pipeline, leaf_pipeline, frame_layout, material_layout, sampler }
     }
 
     /// Clears the G-buffer and draws every batch of `scene` into it.
@@ -400,6 +498,6 @@ impl GeometryPass {
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, frame, &[]);
-        scene.draw(&mut pass, visible);
+        scene.draw(&mut pass, visible, &self.leaf_pipeline);
     }
 }

@@ -58,37 +58,91 @@ pub fn surface_factor(depth: f32, center_depth: f32, radius: f32, c: f32) -> f32
     1.0 + c * dz * dz
 }
 
-/// Per-view state of the hybrid hatching: the reference texture coordinates of every
-/// (plant instance, HLP) pair and the reference vector they were last updated with.
-#[derive(Debug, Clone)]
+/// A reference point of the hatching and silhouette parametrizations (thesis 7.3, Fig. 7.6):
+/// HLP centres near the camera, whole-plant centres at middle distance and an evenly spaced
+/// grid over the terrain far away, so far strokes keep larger continuous patches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum RefKey {
+    /// One HLP of one plant: (plant, HLP index).
+    Hlp(u32, u32),
+    /// The centre of one plant's foliage.
+    Plant(u32),
+    /// One cell of the terrain grid.
+    Cell(u32),
+}
+
+/// One reference point's state: its texture coordinates, the reference vector they were last
+/// updated with, and the frame it was last used in.
+#[derive(Debug, Clone, Copy)]
+struct RefState {
+    uv: Vec2,
+    last_dir: Vec3,
+    used: u64,
+}
+
+/// Frames a reference point is kept after it was last drawn; then it is forgotten (and starts
+/// again from its coarser parent when it comes back into view).
+const FORGET_AFTER_FRAMES: u64 = 600;
+
+/// Per-view state of the hybrid hatching: the reference texture coordinates of the reference
+/// points a view has drawn (thesis eq. 6.2), created when a point is first drawn and forgotten
+/// some frames after it was last drawn, so the state grows with what is near the camera, not
+/// with the scene.
+#[derive(Debug, Clone, Default)]
 pub struct ReferenceCoords {
-    centers: Vec<Vec3>,
-    last_dir: Vec<Vec3>,
-    ref_uv: Vec<Vec2>,
+    states: std::collections::HashMap<RefKey, RefState>,
+    frame: u64,
 }
 
 impl ReferenceCoords {
-    /// All-zero coordinates for HLP centres at `centers` (world space); the first update only
-    /// records the viewing directions.
-    pub fn new(centers: Vec<Vec3>) -> ReferenceCoords {
-        let n = centers.len();
-        ReferenceCoords { centers, last_dir: vec![Vec3::ZERO; n], ref_uv: vec![Vec2::ZERO; n] }
+    /// An empty state: the first frame starts every reference point at zero.
+    pub fn new() -> ReferenceCoords {
+        ReferenceCoords::default()
     }
 
-    /// Applies eq. 6.2 for an eye at `eye` to every reference.
-    pub fn update(&mut self, eye: Vec3, tiles: f32) {
-        for ((center, last), uv) in self.centers.iter().zip(&mut self.last_dir).zip(&mut self.ref_uv) {
-            let dir = (eye - *center).normalize_or(Vec3::Z);
-            if *last != Vec3::ZERO {
-                *uv = reference_update(*uv, *last, dir, tiles);
-            }
-            *last = dir;
+    /// Applies eq. 6.2 for an eye at `eye` to the reference points `keys` (centres from
+    /// `center`) and returns their coordinates in order. A point seen for the first time
+    /// starts from the coordinates of its `parent` (the plant of an HLP, the grid cell of a
+    /// plant) when the view has one, so a plant coming closer keeps its strokes' phase.
+    pub fn update(
+        &mut self,
+        keys: &[RefKey],
+        center: impl Fn(RefKey) -> Vec3,
+        parent: impl Fn(RefKey) -> Option<RefKey>,
+        eye: Vec3,
+        tiles: f32,
+    ) -> Vec<Vec2> {
+        self.frame += 1;
+        let frame = self.frame;
+        let uvs = keys
+            .iter()
+            .map(|&key| {
+                let dir = (eye - center(key)).normalize_or(Vec3::Z);
+                let state = match self.states.get(&key) {
+                    Some(state) => RefState { uv: reference_update(state.uv, state.last_dir, dir, tiles), ..*state },
+                    None => {
+                        let uv = parent(key).and_then(|p| self.states.get(&p)).map_or(Vec2::ZERO, |p| p.uv);
+                        RefState { uv, last_dir: dir, used: frame }
+                    }
+                };
+                self.states.insert(key, RefState { last_dir: dir, used: frame, ..state });
+                state.uv
+            })
+            .collect();
+        if frame.is_multiple_of(64) {
+            self.states.retain(|_, s| frame - s.used <= FORGET_AFTER_FRAMES);
         }
+        uvs
     }
 
-    /// The coordinates as the GPU reads them (`array<vec2<f32>>`).
-    pub fn as_slice(&self) -> &[Vec2] {
-        &self.ref_uv
+    /// Number of reference points the view keeps.
+    pub fn len(&self) -> usize {
+        self.states.len()
+    }
+
+    /// Whether the view keeps no reference point yet.
+    pub fn is_empty(&self) -> bool {
+        self.states.is_empty()
     }
 }
 
@@ -121,12 +175,40 @@ mod tests {
 
     #[test]
     fn reference_coords_accumulate_small_steps() {
-        let mut refs = ReferenceCoords::new(vec![Vec3::ZERO]);
+        let mut refs = ReferenceCoords::new();
+        let keys = [RefKey::Plant(0)];
+        let mut uv = Vec2::ZERO;
         for step in 0..=10 {
             let a = (step as f32).to_radians();
-            refs.update(Vec3::new(-a.sin(), a.cos(), 0.0) * 50.0, 1.0);
+            uv = refs.update(&keys, |_| Vec3::ZERO, |_| None, Vec3::new(-a.sin(), a.cos(), 0.0) * 50.0, 1.0)[0];
         }
-        assert!((refs.as_slice()[0].x - 10f32.to_radians() / PI).abs() < 1e-5);
+        assert!((uv.x - 10f32.to_radians() / PI).abs() < 1e-5);
+    }
+
+    #[test]
+    fn new_reference_points_start_from_their_parent_and_are_forgotten() {
+        let mut refs = ReferenceCoords::new();
+        let center = |key| match key {
+            RefKey::Hlp(_, h) => Vec3::new(h as f32, 0.0, 0.0),
+            _ => Vec3::ZERO,
+        };
+        let parent = |key| match key {
+            RefKey::Hlp(p, _) => Some(RefKey::Plant(p)),
+            _ => None,
+        };
+        let orbit = |deg: f32| Vec3::new(-deg.to_radians().sin(), deg.to_radians().cos(), 0.0) * 100.0;
+        refs.update(&[RefKey::Plant(3)], center, parent, orbit(0.0), 2.0);
+        let plant = refs.update(&[RefKey::Plant(3)], center, parent, orbit(20.0), 2.0)[0];
+        assert!(plant.x > 0.1, "{plant}");
+        // The plant comes close: its HLPs start where the plant's strokes were.
+        let hlps = refs.update(&[RefKey::Hlp(3, 0), RefKey::Hlp(3, 1)], center, parent, orbit(20.0), 2.0);
+        assert_eq!(hlps, vec![plant, plant]);
+        assert_eq!(refs.len(), 3);
+        // Points not drawn for long are dropped; the state stays bounded.
+        for _ in 0..=FORGET_AFTER_FRAMES + 64 {
+            refs.update(&[RefKey::Cell(0)], center, parent, orbit(20.0), 2.0);
+        }
+        assert_eq!(refs.len(), 1);
     }
 
     #[test]

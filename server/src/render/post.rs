@@ -211,7 +211,8 @@ pub fn contour(device: &wgpu::Device) -> FullscreenPass {
 /// The compose pass (`shaders/compose.wgsl` with `shaders/data_common.wgsl`). Inputs: contour +
 /// tone, depth + HLP radius, IDs, hatch coordinates + E, normal + tiles per pixel, albedo, the
 /// array of all TAMs, SAM, TAM sampler, SAM sampler, data layers
-/// ([`super::projection::DATA_FORMAT`]).
+/// ([`super::projection::DATA_FORMAT`]), the hatch-colour slots
+/// ([`super::projection::ProjectionPass::hatch_colors`]).
 pub fn compose(device: &wgpu::Device) -> FullscreenPass {
     use Input::*;
     FullscreenPass::new(
@@ -219,7 +220,7 @@ pub fn compose(device: &wgpu::Device) -> FullscreenPass {
         "compose",
         concat!(include_str!("../../../shaders/data_common.wgsl"), "\n", include_str!("../../../shaders/compose.wgsl")),
         "fs_compose",
-        &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint],
+        &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform],
         OUTPUT_FORMAT,
     )
 }

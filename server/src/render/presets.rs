@@ -40,13 +40,15 @@ pub const PRESETS: &[Preset] = &[
         name: "half_npr",
         description: "realistic colour under a sky with contours, light silhouettes and sparse hatching",
         overrides: r#"{"color": 1.0, "color_abstraction": 0.3, "sky": 1.0, "ambient": 0.4, "normal_blend": 0.3,
+            "implicit_normals": 1.0, "ambient_occlusion": 0.6,
             "contour_threshold": 0.3, "contour_strength": 0.9, "silhouette_strength": 0.6,
             "hatch_strength": 0.6, "hatch_brightness": 0.4}"#,
     },
     Preset {
         name: "full_npr",
         description: "pen-and-ink: contours, stylized silhouettes and hatching on abstracted foliage, no colour",
-        overrides: r#"{"hlp_abstraction": 0.3, "normal_blend": 0.7}"#,
+        overrides: r#"{"hlp_abstraction": 0.3, "normal_blend": 0.7, "implicit_normals": 1.0,
+            "ambient_occlusion": 0.3}"#,
     },
     Preset {
         name: "silhouettes_hatching",
@@ -55,8 +57,9 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "van_gogh",
-        description: "saturated colour under scribbled strokes and spiky silhouettes on rounded crowns, dark blue ink",
+        description: "elliptical leaves on rounded crowns, saturated colour, scribbles, spiky silhouettes, blue ink",
         overrides: r#"{"color": 0.85, "color_saturation": 1.6, "color_abstraction": 0.4, "hlp_abstraction": 0.5,
+            "leaf_mode": "elliptical", "leaf_outline": 0.1,
             "normal_blend": 0.9, "hatch_map": 2, "hatch_tiles": 3.0, "hatch_strength": 0.8,
             "image_hatch_scale": 128.0, "tone_contrast": 2.0, "tone_reference": 0.7, "silhouette_map": 2, "silhouette_stretch": 2.5,
             "sky": 0.9, "sky_zenith": [0.13, 0.25, 0.7], "sky_horizon": [0.95, 0.84, 0.45],
@@ -77,8 +80,9 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "childrens_book",
-        description: "flat toon colours on strongly abstracted round crowns with plain outlines (thesis Fig. 4.8d)",
+        description: "toon colours, outlined leaves turned out of round crowns, plain outlines (thesis Fig. 4.8d)",
         overrides: r#"{"color": 1.0, "color_abstraction": 1.0, "color_saturation": 1.4, "toon": 1.0,
+            "leaf_mode": "reoriented", "leaf_outline": 0.15,
             "toon_levels": 3, "ambient": 0.35, "hlp_abstraction": 0.8, "normal_blend": 1.0,
             "contour_threshold": 0.1, "silhouette_map": 0, "silhouette_support": 3.0, "hatch_strength": 0.0,
             "sky": 0.7, "sky_zenith": [0.45, 0.7, 0.95], "sky_horizon": [0.96, 0.95, 0.85],

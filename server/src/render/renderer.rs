@@ -7,7 +7,7 @@ use super::parametrization::ReferenceCoords;
 use super::post::{self, CONTOUR_FORMAT, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT};
 use super::profile::{PassTimes, Recorder};
 use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
-use super::scene_gpu::{DrawStats, SceneGpu};
+use super::scene_gpu::{DrawStats, LayerDraw, SceneGpu};
 use super::style::{FrameStyle, PostParams, PostUniform, STYLE_SLOTS, Style, art_groups, style_slot};
 use super::{Gpu, RenderError, readback};
 use crate::prep::cache::DiskCache;
@@ -58,7 +58,6 @@ fn error_chain(error: &wgpu::Error) -> String {
 /// camera from frame to frame so strokes stay on the plants.
 pub struct ViewState {
     references: ReferenceCoords,
-    buffer: wgpu::Buffer,
 }
 
 /// The render targets of one frame size, kept for the next frames of that size: allocating
@@ -165,7 +164,13 @@ impl Renderer {
     /// What the geometry pass would draw for `camera`: plants culled and drawn per level of
     /// detail, triangles submitted and the source geometry (the seeds' Table 8.1 figures).
     pub fn draw_stats(&self, camera: &Camera, width: u32, height: u32) -> DrawStats {
-        self.scene.cull(camera, (width, height), &self.lod, |_| true).stats
+        self.draw_stats_with_style(camera, &Style::default(), width, height)
+    }
+
+    /// [`Renderer::draw_stats`] with every layer in `style` (hidden layers, leaf particles).
+    pub fn draw_stats_with_style(&self, camera: &Camera, style: &Style, width: u32, height: u32) -> DrawStats {
+        let drawn_as = LayerDraw::from(&style.resolved());
+        self.scene.cull(camera, (width, height), &self.lod, |_| drawn_as, |_, _| [0.0; 2]).stats
     }
 
     /// Number of tonal art maps (`Style::hatch_map` indexes them) and silhouette art maps
@@ -215,7 +220,7 @@ impl Renderer {
     }
 
     /// Binds the frame uniforms of `camera` with the styles of `slots` and the reference
-    /// coordinates `references`.
+    /// coordinates `references` (see [`SceneGpu::upload`]).
     fn frame_bind_group(
         &self,
         camera: &Camera,
@@ -253,16 +258,28 @@ impl Renderer {
     /// The object ID of every pixel (row-major; see [`super::gbuffer::object_id`]), from the
     /// G-buffer pass alone: for picking the plant under a pointer, and for tests.
     pub fn object_ids(&self, camera: &Camera, width: u32, height: u32) -> Result<Vec<u32>, RenderError> {
-        let slots = self.check(&FrameStyle::default(), width, height)?;
+        self.object_ids_with_style(camera, FrameStyle::default(), width, height)
+    }
+
+    /// [`Renderer::object_ids`] of the scene drawn in `style` (leaf modes, HLP abstraction).
+    pub fn object_ids_with_style(
+        &self,
+        camera: &Camera,
+        style: impl Into<FrameStyle>,
+        width: u32,
+        height: u32,
+    ) -> Result<Vec<u32>, RenderError> {
+        let slots = self.check(&style.into(), width, height)?;
         self.scoped(|| {
             let device = &self.gpu.device;
             let gbuffer = GBuffer::new(device, width, height);
-            let frame = self.frame_bind_group(camera, &slots, width, height, self.scene.zero_references());
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ids") });
             // The instance buffer is shared: one frame at a time.
             let _frame = self.targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-            let visible = self.scene.cull(camera, (width, height), &self.lod, |_| true);
-            self.scene.upload(&self.gpu.queue, &visible);
+            let layer = |id| LayerDraw::from(&slots[style_slot(id)]);
+            let visible = self.scene.cull(camera, (width, height), &self.lod, layer, |_, _| [0.0; 2]);
+            let references = self.scene.upload(device, &self.gpu.queue, &visible, None);
+            let frame = self.frame_bind_group(camera, &slots, width, height, &references);
             self.geometry.encode(&mut encoder, &gbuffer, &frame, &self.scene, &visible);
             self.gpu.queue.submit([encoder.finish()]);
             let texels = readback::read_texels(&self.gpu, &gbuffer.id_texture, width, height, 8)?;
@@ -295,29 +312,28 @@ impl Renderer {
     ) -> Result<image::RgbaImage, RenderError> {
         let slots = self.check(&style.into(), width, height)?;
         ProjectionPass::check(data)?;
-        let references = self.scene.zero_references();
         self.scoped(|| {
-            self.sampled(|times| {
-                Ok(self.render_frame(camera, &slots, width, height, references, data, false, times)?.image)
-            })
+            self.sampled(|times| Ok(self.render_frame(camera, &slots, width, height, None, data, false, times)?.image))
         })
     }
 
-    /// [`Renderer::render`] timing every pass (see [`super::profile`]): slower than a plain
-    /// frame, because each pass waits for the previous one; for the benchmark.
+    /// [`Renderer::render`] (or, with `state`, [`Renderer::render_view`]) timing every pass
+    /// (see [`super::profile`]): slower than a plain frame, because each pass waits for the
+    /// previous one; for the benchmark.
     pub fn render_profiled(
         &self,
+        state: Option<&mut ViewState>,
         camera: &Camera,
         style: impl Into<FrameStyle>,
         width: u32,
         height: u32,
     ) -> Result<(image::RgbaImage, PassTimes), RenderError> {
         let slots = self.check(&style.into(), width, height)?;
-        let references = self.scene.zero_references();
         let mut times = PassTimes::new();
         let data = DataView::default();
-        let frame = self
-            .scoped(|| self.render_frame(camera, &slots, width, height, references, &data, false, Some(&mut times)))?;
+        let history = state.map(|s| &mut s.references);
+        let frame =
+            self.scoped(|| self.render_frame(camera, &slots, width, height, history, &data, false, Some(&mut times)))?;
         Ok((frame.image, times))
     }
 
@@ -396,14 +412,7 @@ impl Renderer {
 
     /// A fresh per-view state for [`Renderer::render_view`].
     pub fn new_view_state(&self) -> ViewState {
-        let references = ReferenceCoords::new(self.scene.reference_centers().to_vec());
-        let buffer = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("references"),
-            size: 8 * references.as_slice().len().max(1) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        ViewState { references, buffer }
+        ViewState { references: ReferenceCoords::new() }
     }
 
     /// Renders the next frame of an animated view: first moves the hatching reference
@@ -422,14 +431,9 @@ impl Renderer {
     ) -> Result<FrameWithDepth, RenderError> {
         let slots = self.check(&style.into(), width, height)?;
         ProjectionPass::check(data)?;
-        // The reference coordinates are in the base style's tiles (layers share them).
-        state.references.update(glam::Vec3::from(camera.position), slots[0].hatch_tiles);
-        if !state.references.as_slice().is_empty() {
-            self.gpu.queue.write_buffer(&state.buffer, 0, bytemuck::cast_slice(state.references.as_slice()));
-        }
         self.scoped(|| {
             self.sampled(|times| {
-                self.render_frame(camera, &slots, width, height, &state.buffer, data, with_depth, times)
+                self.render_frame(camera, &slots, width, height, Some(&mut state.references), data, with_depth, times)
             })
         })
     }
@@ -441,7 +445,7 @@ impl Renderer {
         slots: &[Style],
         width: u32,
         height: u32,
-        references: &wgpu::Buffer,
+        history: Option<&mut ReferenceCoords>,
         data: &DataView,
         with_depth: bool,
         times: Option<&mut PassTimes>,
@@ -452,7 +456,6 @@ impl Renderer {
         let targets = FrameTargets::get(&mut cache, device, width, height);
         let FrameTargets { gbuffer, prefiltered, contours, data_layers, output, output_view, .. } = targets;
 
-        let frame = self.frame_bind_group(camera, slots, width, height, references);
         // One post uniform block per silhouette-art-map group, each with the styles of all
         // slots; the compose pass runs once per group (thesis 8.2.8, see `art_groups`).
         let style = &slots[0];
@@ -499,6 +502,7 @@ impl Renderer {
                         wgpu::BindingResource::Sampler(&self.art.tam_sampler),
                         wgpu::BindingResource::Sampler(&self.art.sam_sampler),
                         view(data_layers),
+                        self.projection.hatch_colors().as_entire_binding(),
                     ],
                 )
             })
@@ -515,8 +519,25 @@ impl Renderer {
         };
 
         let mut recorder = Recorder::new(&self.gpu, times);
-        let visible = self.scene.cull(camera, (width, height), &self.lod, |id| slots[style_slot(id)].visible);
-        self.scene.upload(&self.gpu.queue, &visible);
+        // D3 abstraction is drawn here, in the geometry stage: per plant, from the field at its
+        // position.
+        let abstraction = self.projection.plant_abstraction(data)?;
+        let visible = self.scene.cull(
+            camera,
+            (width, height),
+            &self.lod,
+            |id| LayerDraw::from(&slots[style_slot(id)]),
+            |x, y| abstraction.as_ref().map_or([0.0; 2], |a| a.at(x, y)),
+        );
+        // The reference coordinates follow the camera (eq. 6.2) in the base style's tiles
+        // (layers share them); a frame without history has them all at zero.
+        let uvs = history.map(|state| {
+            let eye = glam::Vec3::from(camera.position);
+            let (center, parent) = (|k| self.scene.reference_center(k), |k| self.scene.reference_parent(k));
+            state.update(visible.references(), center, parent, eye, slots[0].hatch_tiles)
+        });
+        let references = self.scene.upload(device, &self.gpu.queue, &visible, uvs.as_deref());
+        let frame = self.frame_bind_group(camera, slots, width, height, &references);
         recorder.mark("cull")?;
         self.geometry.encode(recorder.encoder(), gbuffer, &frame, &self.scene, &visible);
         recorder.mark("geometry")?;

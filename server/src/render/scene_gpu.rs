@@ -5,17 +5,23 @@
 
 use super::bake::{BakeDraw, BakeTile, Baker};
 use super::gbuffer::{
-    GeometryPass, Instance, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex, average_color, object_id,
+    GeometryPass, Instance, LeafVertex, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex, average_color, object_id,
 };
+use super::parametrization::RefKey;
+use super::style::Style;
 use super::{Gpu, RenderError};
 use crate::prep::cache::{DiskCache, KeyBuilder};
 use crate::prep::hlp::{self, Hlps, Sphere};
+use crate::prep::implicit::{self, ImplicitParams};
+use crate::prep::leaf_shape::{ShapeParams, shape_map_cached};
+use crate::prep::leaves::{self, Leaf, PARTICLE_SHARES};
 use crate::prep::lod::{self, Atlas, Billboard, LodLevel, LodSettings};
+use crate::prep::terrain_lod::{TerrainChunk, TerrainLod};
 use crate::scene::Scene;
 use crate::scene::camera::Camera;
 use crate::scene::mesh::Mesh;
 use crate::scene::plant::{Material, PartKind, PlantModel};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -29,6 +35,14 @@ const BILLBOARD_TILE: u32 = 64;
 const TRUNK_SIDES: usize = 6;
 /// Alpha below which billboard texels are cut away.
 const BILLBOARD_ALPHA_CUTOFF: f32 = 0.35;
+/// DEM cells along each side of a terrain chunk.
+const TERRAIN_CHUNK_CELLS: usize = 32;
+/// Most levels of detail of a terrain chunk.
+const TERRAIN_LEVELS: usize = 6;
+/// On-screen size in pixels below which the terrain's (coarsened) cells are kept.
+const TERRAIN_CELL_PX: f32 = 8.0;
+/// Spacing in metres of the terrain grid of far reference points (thesis 7.3).
+const REFERENCE_GRID_SPACING: f32 = 40.0;
 
 /// One uploaded mesh with its material.
 struct GpuMesh {
@@ -58,21 +72,61 @@ impl From<PartKind> for Surface {
     }
 }
 
+/// The leaf particles of one foliage part (SPEC R1, R2, P4): a quad per leaf, in a shuffled
+/// order so that every prefix is an even share of the leaves.
+struct LeafGpu {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    /// Indices drawn per share of [`PARTICLE_SHARES`].
+    counts: [u32; PARTICLE_SHARES.len()],
+    /// The part's material per share, scaling the particles by √(all / drawn).
+    materials: [wgpu::BindGroup; PARTICLE_SHARES.len()],
+}
+
+/// A species drawn with leaf particles at full detail: the wood of the full model and the
+/// particles of every foliage part.
+struct Particles {
+    /// Indices of the wood meshes in the full level.
+    wood: Vec<usize>,
+    leaves: Vec<LeafGpu>,
+    /// Number of leaves over all parts.
+    count: usize,
+    /// Triangles drawn per share of [`PARTICLE_SHARES`], wood included.
+    triangles: [u64; PARTICLE_SHARES.len()],
+}
+
 /// One species on the GPU: its meshes at every level of detail.
 struct SpeciesGpu {
     levels: [Vec<GpuMesh>; 3],
+    /// What replaces the full level in the particle leaf modes.
+    particles: Particles,
     triangles: [u64; 3],
     /// Bounding sphere of the model (model space), for culling.
     bounds: Sphere,
     /// Height of the model, for its projected size.
     height: f32,
+    /// The HLP spheres (model space): reference points of the two finer levels.
+    spheres: Vec<Sphere>,
+    /// The sphere of the whole-plant billboard: the plant's reference point.
+    board: Sphere,
 }
 
-/// One plant: its species and its instance data.
+/// One plant: its species, its instance data and the terrain-grid cell it stands in.
 #[derive(Clone, Copy)]
 struct Plant {
     species: usize,
     instance: Instance,
+    cell: u32,
+}
+
+impl Plant {
+    /// A model-space point of the plant in world space.
+    fn world(&self, p: Vec3) -> Vec3 {
+        let [x, y, z, scale] = self.instance.offset_scale;
+        let [c, s] = self.instance.rotation;
+        let p = p * scale;
+        Vec3::new(x + c * p.x - s * p.y, y + s * p.x + c * p.y, z + p.z)
+    }
 }
 
 /// Counts of a frame's geometry: what the seeds' Table 8.1 reports.
@@ -89,6 +143,8 @@ pub struct DrawStats {
     pub triangles: u64,
     /// Triangles of the full scene (every plant at full detail, and the terrain).
     pub source_triangles: u64,
+    /// Hatching reference points of the frame (HLPs, plants and terrain-grid cells, thesis 7.3).
+    pub reference_points: u64,
 }
 
 impl DrawStats {
@@ -98,26 +154,58 @@ impl DrawStats {
     }
 }
 
-/// The plants one frame draws: its instance list in (species, level) runs.
+/// How [`SceneGpu::cull`] draws the plants of one layer, from the layer's (resolved) style.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LayerDraw {
+    /// Whether the layer's plants are drawn (`Style::visible`).
+    pub visible: bool,
+    /// Whether plants at full detail draw leaf particles instead of the model's foliage (a
+    /// particle `Style::leaf_mode`).
+    pub particles: bool,
+}
+
+impl From<&Style> for LayerDraw {
+    fn from(style: &Style) -> LayerDraw {
+        LayerDraw { visible: style.visible, particles: style.leaf_mode.particles() }
+    }
+}
+
+/// The plants one frame draws: its instance list in (species, level) runs and the reference
+/// points the instances index.
 pub struct VisibleSet {
     instances: Vec<Instance>,
     batches: Vec<(usize, LodLevel, Range<u32>)>,
+    /// Runs of plants at full detail drawn with leaf particles: (species, share, instances).
+    particle_batches: Vec<(usize, usize, Range<u32>)>,
+    /// Index ranges of the visible terrain chunks at their levels of detail.
+    terrain_ranges: Vec<Range<u32>>,
+    references: Vec<RefKey>,
     pub stats: DrawStats,
+}
+
+impl VisibleSet {
+    /// The reference points of the frame, in the order of its reference buffer.
+    pub fn references(&self) -> &[RefKey] {
+        &self.references
+    }
 }
 
 /// Everything the geometry pass draws, resident on the GPU.
 pub struct SceneGpu {
+    /// The terrain's chunks at all levels of detail, in one vertex and one index buffer.
     terrain: GpuMesh,
+    terrain_chunks: Vec<TerrainChunk>,
+    /// DEM cell size in metres, for the chunks' projected cell size.
+    terrain_cell: f32,
     species: Vec<SpeciesGpu>,
     plants: Vec<Plant>,
     source_triangles: u64,
-    /// World-space centre of every (instance, HLP) pair, in reference-buffer order; each
-    /// plant's HLPs are followed by one entry for the whole plant (its far level of detail).
-    reference_centers: Vec<Vec3>,
-    /// All-zero reference coordinates for stateless frames.
-    zero_references: wgpu::Buffer,
+    /// The far reference points: one sphere per terrain-grid cell holding plants (world space).
+    cells: Vec<Sphere>,
     /// The instances of a frame: room for every plant at two levels, and the terrain.
     instance_buffer: wgpu::Buffer,
+    /// The reference coordinates of a frame, grown when a frame needs more.
+    reference_buffer: std::sync::Mutex<wgpu::Buffer>,
     /// GPU memory of everything above.
     gpu_bytes: u64,
 }
@@ -169,6 +257,8 @@ struct Uploader<'a> {
     white: wgpu::TextureView,
     /// Bytes of GPU memory uploaded so far (buffers, textures with their mip chains).
     bytes: u64,
+    /// Where leaf shape maps are cached.
+    disk: Option<&'a DiskCache>,
 }
 
 impl Uploader<'_> {
@@ -177,6 +267,19 @@ impl Uploader<'_> {
         &mut self,
         mesh: &Mesh,
         hlp: Option<(&[u32], &[Sphere])>,
+        material: &Material,
+        surface: Surface,
+    ) -> GpuMesh {
+        self.lit_mesh(mesh, hlp, &[], material, surface)
+    }
+
+    /// [`Uploader::mesh`] with the implicit-surface illumination k_a·N_s of every vertex
+    /// ([`Vertex::implicit`]; vertices beyond `implicit` get zero, "none").
+    fn lit_mesh(
+        &mut self,
+        mesh: &Mesh,
+        hlp: Option<(&[u32], &[Sphere])>,
+        implicit: &[[f32; 3]],
         material: &Material,
         surface: Surface,
     ) -> GpuMesh {
@@ -195,23 +298,80 @@ impl Uploader<'_> {
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0, 0.0]),
                     hlp: sphere,
                     hlp_index: index,
+                    implicit: implicit.get(i).copied().unwrap_or([0.0; 3]),
                 }
             })
             .collect();
-        self.bytes += (std::mem::size_of_val(vertices.as_slice()) + 4 * mesh.indices.len()) as u64;
-        let vertices = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let (vertices, indices) = self.buffers(bytemuck::cast_slice(&vertices), &mesh.indices);
+        let material = self.material(material, surface, 1.0);
+        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material }
+    }
+
+    /// Uploads a vertex and an index buffer.
+    fn buffers(&mut self, vertices: &[u8], indices: &[u32]) -> (wgpu::Buffer, wgpu::Buffer) {
+        self.bytes += (vertices.len() + 4 * indices.len()) as u64;
+        let vertex_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vertices"),
-            contents: bytemuck::cast_slice(&vertices),
+            contents: vertices,
             usage: wgpu::BufferUsages::VERTEX,
         });
-        let indices = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let index_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("indices"),
-            contents: bytemuck::cast_slice(&mesh.indices),
+            contents: bytemuck::cast_slice(indices),
             usage: wgpu::BufferUsages::INDEX,
         });
+        (vertex_buffer, index_buffer)
+    }
+
+    /// Uploads the leaf particles of one foliage part: a quad per leaf of `leaves` (in their
+    /// shuffled order), whose HLPs `spheres` holds, with `material`; `implicit` is the part's
+    /// implicit-surface illumination per vertex.
+    fn particles(
+        &mut self,
+        leaves: &[Leaf],
+        spheres: &[Sphere],
+        implicit: &[[f32; 3]],
+        material: &Material,
+    ) -> LeafGpu {
+        let mut vertices = Vec::with_capacity(4 * leaves.len());
+        let mut indices = Vec::with_capacity(6 * leaves.len());
+        for leaf in leaves {
+            let first = vertices.len() as u32;
+            let sphere = spheres.get(leaf.hlp as usize).copied().unwrap_or(Sphere { center: leaf.center, radius: 0.0 });
+            let coverage = leaves::coverage(leaf, material.texture.as_deref(), material.alpha_cutoff);
+            let lit = implicit.get(leaf.vertex as usize).copied().unwrap_or([0.0; 3]);
+            vertices.extend(LeafVertex::corners(leaf, sphere, coverage, lit));
+            indices.extend(leaf.triangles().map(|corner| first + corner));
+        }
+        let (vertices, indices) = self.buffers(bytemuck::cast_slice(&vertices), &indices);
+        let drawn = PARTICLE_SHARES.map(|share| leaves::prefix_len(leaves.len(), share));
+        // Fewer particles, larger: √(all / drawn) keeps the coverage (SPEC P4).
+        let materials =
+            drawn.map(|n| self.material(material, Surface::Foliage, (leaves.len() as f32 / n.max(1) as f32).sqrt()));
+        let counts = drawn.map(|n| 6 * n as u32);
+        LeafGpu { vertices, indices, counts, materials }
+    }
+
+    /// The bind group of `material` drawn as `surface`: its uniform, texture and sampler.
+    /// Alpha-tested foliage gets the leaf shape map of its texture (thesis 4.1,
+    /// [`shape_map_cached`]) with α_max at the material's cutoff, so the style's `leaf_shape`
+    /// picks a more abstract shape at render time. `particle_scale` sizes leaf particles drawn
+    /// as a share of the leaves (1 for everything else).
+    fn material(&mut self, material: &Material, surface: Surface, particle_scale: f32) -> wgpu::BindGroup {
+        let cutoff = material.alpha_cutoff.unwrap_or(-1.0);
+        let shapes = match (&material.texture, material.alpha_cutoff) {
+            (Some(texture), Some(alpha_max)) if surface == Surface::Foliage => {
+                let defaults = ShapeParams::default();
+                let params = ShapeParams { alpha_max, alpha_min: defaults.alpha_min.min(0.5 * alpha_max), ..defaults };
+                Some((shape_map_cached(texture, &params, self.disk), params.alpha_min))
+            }
+            _ => None,
+        };
+        let alpha_min = shapes.as_ref().map_or(cutoff, |(_, alpha_min)| *alpha_min);
+        let texture = shapes.map(|(map, _)| map).or_else(|| material.texture.clone());
         let uniform = MaterialUniform {
             base_color: material.base_color,
-            params: [material.alpha_cutoff.unwrap_or(-1.0), surface as u32 as f32, 0.0, 0.0],
+            params: [cutoff, surface as u32 as f32, alpha_min, particle_scale],
             average_color: average_color(material),
         };
         let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -219,7 +379,7 @@ impl Uploader<'_> {
             contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let view = match &material.texture {
+        let view = match &texture {
             Some(image) => {
                 let (device, queue, bytes) = (self.device, self.queue, &mut self.bytes);
                 let upload = || {
@@ -231,7 +391,7 @@ impl Uploader<'_> {
             }
             None => self.white.clone(),
         };
-        let material = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(&material.name),
             layout: &self.pass.material_layout,
             entries: &[
@@ -239,14 +399,14 @@ impl Uploader<'_> {
                 wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&view) },
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&self.pass.sampler) },
             ],
-        });
-        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material }
+        })
     }
 }
 
 /// A content key for a species' baked billboards: geometry, textures, HLPs and bake settings.
 fn bake_key(model: &PlantModel, hlp_radius: f32) -> String {
-    let mut key = KeyBuilder::default().bytes(b"billboards v1").u64(hlp::model_hash(model)).f32(hlp_radius);
+    // v2: foliage is baked with the leaf shape maps of its textures.
+    let mut key = KeyBuilder::default().bytes(b"billboards v2").u64(hlp::model_hash(model)).f32(hlp_radius);
     key = key.u64(u64::from(BILLBOARD_TILE));
     for part in &model.parts {
         let m = &part.material;
@@ -284,7 +444,7 @@ impl SceneGpu {
     ) -> Result<SceneGpu, RenderError> {
         let (device, queue) = (&gpu.device, &gpu.queue);
         let white = upload_texture(device, queue, &image::RgbaImage::from_pixel(1, 1, image::Rgba([255; 4])));
-        let mut up = Uploader { device, queue, pass, textures: HashMap::new(), white, bytes: 0 };
+        let mut up = Uploader { device, queue, pass, textures: HashMap::new(), white, bytes: 0, disk };
         let [r, g, b] = scene.terrain.albedo;
         let terrain_material = Material {
             name: "terrain".into(),
@@ -293,7 +453,8 @@ impl SceneGpu {
             alpha_cutoff: None,
             double_sided: false,
         };
-        let terrain = up.mesh(&scene.terrain.mesh, None, &terrain_material, Surface::Terrain);
+        let terrain_lod = TerrainLod::build(&scene.terrain, TERRAIN_CHUNK_CELLS, TERRAIN_LEVELS);
+        let terrain = up.mesh(&terrain_lod.mesh, None, &terrain_material, Surface::Terrain);
         let baker = Baker::new(device, &pass.material_layout);
         let mut species = Vec::with_capacity(scene.species.len());
         let mut plant_boards = Vec::with_capacity(scene.species.len());
@@ -305,34 +466,25 @@ impl SceneGpu {
         }
 
         let mut plants = Vec::with_capacity(scene.plant_count());
-        let mut reference_centers = Vec::new();
         for (layer_index, layer) in scene.layers.iter().enumerate() {
             for (i, plant) in layer.plants.iter().enumerate() {
                 let [x, y, z] = plant.position;
-                let rotation = glam::Quat::from_rotation_z(plant.rotation);
-                let offset = Vec3::new(x, y, z);
-                let (hlps, board) = &plant_boards[plant.species];
                 let instance = Instance {
                     offset_scale: [x, y, z, plant.scale],
                     rotation: [plant.rotation.cos(), plant.rotation.sin()],
                     object_id: object_id(layer_index as u32 + 2, i as u32),
-                    reference_base: reference_centers.len() as u32,
+                    reference_base: 0,
                     mask: [0.0, 1.0],
+                    data_abstraction: [0.0; 2],
+                    reference_sphere: [0.0; 4],
                 };
-                let world = |c: Vec3| offset + rotation * (c * plant.scale);
-                reference_centers.extend(hlps.spheres.iter().map(|s| world(s.center)));
-                reference_centers.push(world(board.center));
-                plants.push(Plant { species: plant.species, instance });
+                plants.push(Plant { species: plant.species, instance, cell: 0 });
             }
         }
         plants.sort_by_key(|p| p.species);
+        let cells = reference_grid(&mut plants, &species, REFERENCE_GRID_SPACING);
         let source_triangles = scene.terrain.mesh.triangle_count() as u64
             + plants.iter().map(|p| species[p.species].triangles[LodLevel::Full.index()]).sum::<u64>();
-        let zero_references = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("zero references"),
-            contents: &vec![0u8; 8 * reference_centers.len().max(1)],
-            usage: wgpu::BufferUsages::STORAGE,
-        });
         info!(
             species = species.len(),
             plants = plants.len(),
@@ -340,10 +492,9 @@ impl SceneGpu {
             source_triangles,
             "scene uploaded"
         );
-        // Meshes and textures, the zero references, and at most every plant twice per frame.
-        let gpu_bytes = up.bytes
-            + 8 * reference_centers.len() as u64
-            + 2 * (plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64;
+        // Meshes and textures, and at most every plant twice per frame (the reference buffer
+        // grows with what a frame draws; it is not counted).
+        let gpu_bytes = up.bytes + 2 * (plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64;
         let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("instances"),
             size: (2 * plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64,
@@ -352,12 +503,14 @@ impl SceneGpu {
         });
         Ok(SceneGpu {
             terrain,
+            terrain_cell: terrain_lod.cell_size(),
+            terrain_chunks: terrain_lod.chunks,
             species,
             plants,
             source_triangles,
-            reference_centers,
-            zero_references,
+            cells,
             instance_buffer,
+            reference_buffer: std::sync::Mutex::new(reference_buffer(device, 1)),
             gpu_bytes,
         })
     }
@@ -378,18 +531,47 @@ impl SceneGpu {
         // Level 0: the model, foliage split and sorted by HLP so each HLP can be baked alone.
         let mut full = Vec::new();
         let mut hlp_ranges = Vec::new();
-        for (part, triangle_hlp) in model.parts.iter().zip(&hlps.triangle_hlp) {
+        // The implicit-surface illumination of the foliage (Luft et al. 2007), per original vertex.
+        let lighting = implicit::illuminate_cached(model, &ImplicitParams::default(), up.disk);
+        for ((part, triangle_hlp), lit) in model.parts.iter().zip(&hlps.triangle_hlp).zip(&lighting.normals) {
             match part.kind {
                 PartKind::Foliage => {
                     let mut split = hlp::split_by_hlp(&part.mesh, triangle_hlp);
                     let ranges = hlp::sort_by_hlp(&mut split, spheres.len());
-                    full.push(up.mesh(&split.mesh, Some((&split.hlp, spheres)), &part.material, Surface::Foliage));
+                    let lit: Vec<[f32; 3]> = split.source.iter().map(|&v| lit[v as usize]).collect();
+                    let hlp = Some((split.hlp.as_slice(), spheres));
+                    full.push(up.lit_mesh(&split.mesh, hlp, &lit, &part.material, Surface::Foliage));
                     hlp_ranges.push(Some(ranges));
                 }
                 PartKind::Wood => {
                     full.push(up.mesh(&part.mesh, None, &part.material, Surface::Wood));
                     hlp_ranges.push(None);
                 }
+            }
+        }
+        // Leaf particles (SPEC R1, R2, P4): each foliage part's leaves as quads in one shuffled
+        // order, drawn with the wood of the full model.
+        let order = leaves::shuffled(leaves::split(model, hlps), leaves::LEAF_ORDER_SEED);
+        let mut particles = Particles {
+            wood: Vec::new(),
+            leaves: Vec::new(),
+            count: order.len(),
+            triangles: [0; PARTICLE_SHARES.len()],
+        };
+        for (index, part) in model.parts.iter().enumerate() {
+            if part.kind == PartKind::Wood {
+                particles.wood.push(index);
+                particles.triangles = particles.triangles.map(|t| t + part.mesh.triangle_count() as u64);
+                continue;
+            }
+            let own: Vec<Leaf> = order.iter().filter(|leaf| leaf.part == index).copied().collect();
+            if !own.is_empty() {
+                let lit = lighting.normals.get(index).map_or(&[][..], Vec::as_slice);
+                let gpu_leaves = up.particles(&own, spheres, lit, &part.material);
+                for (t, count) in particles.triangles.iter_mut().zip(gpu_leaves.counts) {
+                    *t += u64::from(count / 3);
+                }
+                particles.leaves.push(gpu_leaves);
             }
         }
         // Atlas tiles: three views per HLP, then three for the whole plant.
@@ -458,40 +640,62 @@ impl SceneGpu {
             alpha_cutoff: Some(BILLBOARD_ALPHA_CUTOFF),
             double_sided: true,
         };
+        // Billboards carry the mean k_a of the leaves they stand for (only the length of their
+        // implicit attribute counts: they are lit as their HLP sphere), so ambient occlusion
+        // does not pop between levels of detail.
+        let (hlp_ka, plant_ka) = lighting.hlp_ambient(model, hlps);
         // Level 1: the HLP billboard cloud and the trunk prism.
         let (hlp_mesh, owners) = lod::billboard_mesh(&boards, &atlas, 0);
-        let mut hlp_level = vec![up.mesh(&hlp_mesh, Some((&owners, spheres)), &billboard_material, Surface::Billboard)];
+        let lit: Vec<[f32; 3]> = owners.iter().map(|&h| [0.0, 0.0, hlp_ka[h as usize]]).collect();
+        let mut hlp_level =
+            vec![up.lit_mesh(&hlp_mesh, Some((&owners, spheres)), &lit, &billboard_material, Surface::Billboard)];
         let mut hlp_triangles = hlp_mesh.triangle_count() as u64;
         if let Some((trunk, part)) = lod::trunk_cylinder(model, TRUNK_SIDES) {
             hlp_triangles += trunk.triangle_count() as u64;
             hlp_level.push(up.mesh(&trunk, None, &model.parts[part].material, Surface::Wood));
         }
-        // Level 2: one billboard for the plant, indexing the reference entry after the HLPs.
+        // Level 2: one billboard for the plant, its one sphere the plant's reference point.
         let (plant_mesh, plant_owner) = lod::billboard_mesh(&[plant_board], &atlas, 3 * boards.len());
-        let plant_sphere = [Sphere { center: plant_board.center, radius: plant_board.radius }];
-        let plant_index = vec![spheres.len() as u32; plant_owner.len()];
-        let mut indexed_spheres = spheres.to_vec();
-        indexed_spheres.extend(plant_sphere);
-        let plant_level =
-            vec![up.mesh(&plant_mesh, Some((&plant_index, &indexed_spheres)), &billboard_material, Surface::Billboard)];
+        let board = Sphere { center: plant_board.center, radius: plant_board.radius };
+        let lit = vec![[0.0, 0.0, plant_ka]; plant_mesh.positions.len()];
+        let plant_owner = Some((plant_owner.as_slice(), std::slice::from_ref(&board)));
+        let plant_level = vec![up.lit_mesh(&plant_mesh, plant_owner, &lit, &billboard_material, Surface::Billboard)];
         let (lo, hi) = model.bounds();
         let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
         Ok(SpeciesGpu {
             levels: [full, hlp_level, plant_level],
+            particles,
             triangles: [model.triangle_count() as u64, hlp_triangles, plant_mesh.triangle_count() as u64],
             bounds: Sphere { center: (lo + hi) * 0.5, radius: (hi - lo).length() * 0.5 },
             height: hi.z - lo.z,
+            spheres: spheres.to_vec(),
+            board,
         })
     }
 
-    /// World-space centres of every (instance, HLP) pair, in the order of the reference buffer.
-    pub fn reference_centers(&self) -> &[Vec3] {
-        &self.reference_centers
+    /// The world-space centre of a reference point.
+    pub fn reference_center(&self, key: RefKey) -> Vec3 {
+        match key {
+            RefKey::Hlp(plant, hlp) => {
+                let plant = &self.plants[plant as usize];
+                plant.world(self.species[plant.species].spheres[hlp as usize].center)
+            }
+            RefKey::Plant(plant) => {
+                let plant = &self.plants[plant as usize];
+                plant.world(self.species[plant.species].board.center)
+            }
+            RefKey::Cell(cell) => self.cells[cell as usize].center,
+        }
     }
 
-    /// Reference coordinates that are all zero: what a frame without history uses.
-    pub fn zero_references(&self) -> &wgpu::Buffer {
-        &self.zero_references
+    /// The next coarser reference point (thesis 7.3): the plant of an HLP, the grid cell of a
+    /// plant.
+    pub fn reference_parent(&self, key: RefKey) -> Option<RefKey> {
+        match key {
+            RefKey::Hlp(plant, _) => Some(RefKey::Plant(plant)),
+            RefKey::Plant(plant) => Some(RefKey::Cell(self.plants[plant as usize].cell)),
+            RefKey::Cell(_) => None,
+        }
     }
 
     /// Estimated GPU memory of the scene in bytes (see [`super::Renderer::gpu_bytes`]).
@@ -505,15 +709,19 @@ impl SceneGpu {
     }
 
     /// Culls the plants against the view frustum of `camera` (for a `width` × `height` image),
-    /// leaves out the plants whose object ID `shown` refuses (hidden layers), picks each
-    /// visible plant's level(s) of detail. [`SceneGpu::upload`] then writes the instance list to
+    /// leaves out the plants of hidden layers, picks each visible plant's level(s) of detail,
+    /// and for plants at full detail whose layer draws leaf particles, the share of their
+    /// leaves (SPEC P4); `layer` tells how the layer of an object ID is drawn, `abstraction`
+    /// gives a data layer's HLP abstraction and its weight at a plant's scene position (see
+    /// [`Instance::data_abstraction`]). [`SceneGpu::upload`] then writes the instance list to
     /// the GPU.
     pub fn cull(
         &self,
         camera: &Camera,
         (width, height): (u32, u32),
         lod: &LodSettings,
-        shown: impl Fn(u32) -> bool,
+        layer: impl Fn(u32) -> LayerDraw,
+        abstraction: impl Fn(f32, f32) -> [f32; 2],
     ) -> VisibleSet {
         let aspect = width as f32 / height as f32;
         let planes = frustum_planes(camera.projection(aspect) * camera.view());
@@ -523,18 +731,18 @@ impl SceneGpu {
         let plan = camera.plan_metres_per_pixel(width);
         let px_per_metre = height as f32 / (2.0 * (camera.fov.to_radians() * 0.5).tan());
         let mut runs: Vec<Vec<Instance>> = vec![Vec::new(); self.species.len() * 3];
+        let mut particle_runs: Vec<Vec<Instance>> = vec![Vec::new(); self.species.len() * PARTICLE_SHARES.len()];
         let mut stats = DrawStats { plants: self.plants.len() as u64, ..DrawStats::default() };
-        for plant in &self.plants {
+        let mut references = References::default();
+        for (index, plant) in self.plants.iter().enumerate() {
             let s = &self.species[plant.species];
             let i = &plant.instance;
-            if !shown(i.object_id) {
+            let drawn_as = layer(i.object_id);
+            if !drawn_as.visible {
                 continue;
             }
-            let [x, y, z, scale] = i.offset_scale;
-            let [c, sn] = i.rotation;
-            let local = s.bounds.center * scale;
-            let center = Vec3::new(x + c * local.x - sn * local.y, y + sn * local.x + c * local.y, z + local.z);
-            let radius = s.bounds.radius * scale;
+            let center = plant.world(s.bounds.center);
+            let radius = s.bounds.radius * i.offset_scale[3];
             if planes.iter().any(|p| p.truncate().dot(center) + p.w < -radius) {
                 continue;
             }
@@ -543,17 +751,35 @@ impl SceneGpu {
                 Some(m) => 2.0 * radius / m,
                 None => {
                     let depth = (center - eye).dot(forward).max(radius * 0.5).max(1e-3);
-                    s.height * scale * px_per_metre / depth
+                    s.height * i.offset_scale[3] * px_per_metre / depth
                 }
             };
             let draws = lod.select(px);
-            if draws[0].is_some() {
-                stats.plants_drawn += 1;
+            if draws[0].is_none() {
+                continue;
             }
+            stats.plants_drawn += 1;
+            let data_abstraction = abstraction(i.offset_scale[0], i.offset_scale[1]);
             for draw in draws.into_iter().flatten() {
                 stats.per_level[draw.level.index()] += 1;
-                stats.triangles += s.triangles[draw.level.index()];
-                runs[plant.species * 3 + draw.level.index()].push(Instance { mask: draw.mask, ..*i });
+                // Leaf particles: the share of the leaves falls with the plant's size (SPEC P4).
+                let share = (drawn_as.particles && draw.level == LodLevel::Full)
+                    .then(|| leaves::particle_bucket(px, s.particles.count));
+                stats.triangles += share.map_or(s.triangles[draw.level.index()], |b| s.particles.triangles[b]);
+                let (reference_base, reference_sphere) = match draw.level {
+                    LodLevel::Full | LodLevel::Hlp => (references.hlps(index as u32, s.spheres.len()), [0.0; 4]),
+                    LodLevel::Plant if px < lod.grid_px => {
+                        let cell = self.cells[plant.cell as usize];
+                        let [x, y, z] = cell.center.to_array();
+                        (references.point(RefKey::Cell(plant.cell)), [x, y, z, cell.radius])
+                    }
+                    LodLevel::Plant => (references.point(RefKey::Plant(index as u32)), [0.0; 4]),
+                };
+                let instance = Instance { mask: draw.mask, reference_base, reference_sphere, data_abstraction, ..*i };
+                match share {
+                    Some(b) => particle_runs[plant.species * PARTICLE_SHARES.len() + b].push(instance),
+                    None => runs[plant.species * 3 + draw.level.index()].push(instance),
+                }
             }
         }
         let terrain = Instance {
@@ -562,45 +788,180 @@ impl SceneGpu {
             object_id: object_id(TERRAIN_LAYER_CODE, 0),
             reference_base: 0,
             mask: [0.0, 1.0],
+            data_abstraction: [0.0; 2],
+            reference_sphere: [0.0; 4],
         };
-        stats.triangles += u64::from(self.terrain.index_count / 3);
-        stats.source_triangles = self.source_triangles;
-        let mut instances = vec![terrain];
-        let mut batches = Vec::new();
-        for (run_index, run) in runs.into_iter().enumerate() {
-            if run.is_empty() {
+        // Terrain chunks: culled like plants, their level from the projected size of a cell
+        // at the chunk's nearest point.
+        let mut terrain_ranges = Vec::new();
+        for chunk in &self.terrain_chunks {
+            if planes.iter().any(|p| p.truncate().dot(chunk.center) + p.w < -chunk.radius) {
                 continue;
             }
-            let start = instances.len() as u32;
-            instances.extend(run);
-            batches.push((run_index / 3, LodLevel::ALL[run_index % 3], start..instances.len() as u32));
+            let cell_px = match plan {
+                Some(m) => self.terrain_cell / m,
+                None => self.terrain_cell * px_per_metre / ((chunk.center - eye).length() - chunk.radius).max(1e-3),
+            };
+            let range = chunk.levels[chunk.level_for(cell_px, TERRAIN_CELL_PX)].clone();
+            stats.triangles += u64::from((range.end - range.start) / 3);
+            terrain_ranges.push(range);
         }
-        VisibleSet { instances, batches, stats }
+        stats.source_triangles = self.source_triangles;
+        let mut instances = vec![terrain];
+        let batches = append_runs(&mut instances, runs)
+            .into_iter()
+            .map(|(run, range)| (run / 3, LodLevel::ALL[run % 3], range))
+            .collect();
+        let shares = PARTICLE_SHARES.len();
+        let particle_batches = append_runs(&mut instances, particle_runs)
+            .into_iter()
+            .map(|(run, range)| (run / shares, run % shares, range))
+            .collect();
+        stats.reference_points = references.keys.len() as u64;
+        VisibleSet { instances, batches, particle_batches, terrain_ranges, references: references.keys, stats }
     }
 
-    /// Writes the instance list of `visible` to the instance buffer, which is reused by every
-    /// frame (one frame at a time: the caller serialises frames).
-    pub fn upload(&self, queue: &wgpu::Queue, visible: &VisibleSet) {
+    /// Writes the instance list of `visible` and the coordinates of its reference points
+    /// (`uvs`, in [`VisibleSet::references`] order; `None`: all zero, a frame without
+    /// history) to the buffers every frame reuses (one frame at a time: the caller serialises
+    /// frames). Returns the reference buffer to bind.
+    pub fn upload(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        visible: &VisibleSet,
+        uvs: Option<&[Vec2]>,
+    ) -> wgpu::Buffer {
         queue.write_buffer(&self.instance_buffer, 0, bytemuck::cast_slice(&visible.instances));
+        let count = visible.references.len().max(1);
+        let mut buffer = self.reference_buffer.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if buffer.size() < 8 * count as u64 {
+            *buffer = reference_buffer(device, count.next_power_of_two());
+        }
+        match uvs {
+            Some(uvs) => queue.write_buffer(&buffer, 0, bytemuck::cast_slice(uvs)),
+            None => queue.write_buffer(&buffer, 0, &vec![0u8; 8 * count]),
+        }
+        buffer.clone()
     }
 
-    /// Records the draws of the terrain and every visible instance run.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, visible: &VisibleSet) {
+    /// Records the draws of the terrain and every visible instance run; plants drawn with leaf
+    /// particles last, their leaves with `leaf_pipeline`.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, visible: &VisibleSet, leaf_pipeline: &wgpu::RenderPipeline) {
         let bytes = std::mem::size_of_val(visible.instances.as_slice()) as u64;
         pass.set_vertex_buffer(1, self.instance_buffer.slice(..bytes));
+        pass.set_bind_group(1, &self.terrain.material, &[]);
+        pass.set_vertex_buffer(0, self.terrain.vertices.slice(..));
+        pass.set_index_buffer(self.terrain.indices.slice(..), wgpu::IndexFormat::Uint32);
+        for range in &visible.terrain_ranges {
+            pass.draw_indexed(range.clone(), 0, 0..1);
+        }
         let mut draw = |mesh: &GpuMesh, instances: Range<u32>| {
             pass.set_bind_group(1, &mesh.material, &[]);
             pass.set_vertex_buffer(0, mesh.vertices.slice(..));
             pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..mesh.index_count, 0, instances);
         };
-        draw(&self.terrain, 0..1);
         for (species, level, instances) in &visible.batches {
             for mesh in &self.species[*species].levels[level.index()] {
                 draw(mesh, instances.clone());
             }
         }
+        for (species, _, instances) in &visible.particle_batches {
+            let s = &self.species[*species];
+            for &wood in &s.particles.wood {
+                draw(&s.levels[LodLevel::Full.index()][wood], instances.clone());
+            }
+        }
+        if visible.particle_batches.is_empty() {
+            return;
+        }
+        pass.set_pipeline(leaf_pipeline);
+        for (species, share, instances) in &visible.particle_batches {
+            for leaves in &self.species[*species].particles.leaves {
+                pass.set_bind_group(1, &leaves.materials[*share], &[]);
+                pass.set_vertex_buffer(0, leaves.vertices.slice(..));
+                pass.set_index_buffer(leaves.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..leaves.counts[*share], 0, instances.clone());
+            }
+        }
     }
+}
+
+/// Appends the non-empty `runs` to `instances`; returns each one's index and instance range.
+fn append_runs(instances: &mut Vec<Instance>, runs: Vec<Vec<Instance>>) -> Vec<(usize, Range<u32>)> {
+    let mut ranges = Vec::new();
+    for (index, run) in runs.into_iter().enumerate() {
+        if run.is_empty() {
+            continue;
+        }
+        let start = instances.len() as u32;
+        instances.extend(run);
+        ranges.push((index, start..instances.len() as u32));
+    }
+    ranges
+}
+
+/// The reference points of a frame as [`SceneGpu::cull`] collects them: each plant's HLPs as
+/// one run, plants and grid cells once each.
+#[derive(Default)]
+struct References {
+    keys: Vec<RefKey>,
+    index: HashMap<RefKey, u32>,
+}
+
+impl References {
+    /// The entry of a single reference point, added on first use.
+    fn point(&mut self, key: RefKey) -> u32 {
+        let next = self.keys.len() as u32;
+        *self.index.entry(key).or_insert_with(|| {
+            self.keys.push(key);
+            next
+        })
+    }
+
+    /// The first entry of the `count` HLPs of `plant`, added as one run on first use (a plant
+    /// in a blend band draws two levels with the same HLPs).
+    fn hlps(&mut self, plant: u32, count: usize) -> u32 {
+        let first = self.keys.len() as u32;
+        *self.index.entry(RefKey::Hlp(plant, 0)).or_insert_with(|| {
+            self.keys.extend((0..count as u32).map(|h| RefKey::Hlp(plant, h)));
+            first
+        })
+    }
+}
+
+/// A storage buffer for `count` reference coordinates.
+fn reference_buffer(device: &wgpu::Device, count: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("references"),
+        size: 8 * count as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// The far reference points of thesis 7.3: an evenly spaced grid of `spacing` metres over the
+/// ground the plants stand on. Each cell holding plants gets one sphere, centred on the mean
+/// foliage centre of its plants (so it lies inside the vegetation, as the thesis asks) and
+/// reaching over the cell; sets every plant's `cell`.
+fn reference_grid(plants: &mut [Plant], species: &[SpeciesGpu], spacing: f32) -> Vec<Sphere> {
+    let mut cells: HashMap<(i64, i64), (u32, Vec3, u32)> = HashMap::new();
+    for plant in plants.iter_mut() {
+        let [x, y, ..] = plant.instance.offset_scale;
+        let key = ((x / spacing).floor() as i64, (y / spacing).floor() as i64);
+        let next = cells.len() as u32;
+        let cell = cells.entry(key).or_insert((next, Vec3::ZERO, 0));
+        cell.1 += plant.world(species[plant.species].board.center);
+        cell.2 += 1;
+        plant.cell = cell.0;
+    }
+    let mut spheres = vec![Sphere { center: Vec3::ZERO, radius: 0.0 }; cells.len()];
+    for (index, sum, count) in cells.into_values() {
+        spheres[index as usize] =
+            Sphere { center: sum / count as f32, radius: spacing * std::f32::consts::FRAC_1_SQRT_2 };
+    }
+    spheres
 }
 
 /// The side planes of a view frustum (left, right, bottom, top, near) from a world → clip

@@ -22,6 +22,30 @@ pub enum HatchSpace {
     Image,
 }
 
+/// How the leaves of plants at full detail are drawn (thesis 4.1–4.2; SPEC R1, R2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LeafMode {
+    /// The model's own leaf geometry.
+    Original,
+    /// One camera-facing quad per leaf (leaf particles, SPEC R2).
+    Billboard,
+    /// One quad per leaf, turned so its normal points away from its HLP centre along N_HLP
+    /// (thesis eq. 4.7; the "children's book" look of thesis 4.2).
+    Reoriented,
+    /// One ellipse per leaf in the plane tangent to its HLP sphere, elongated around the HLP's
+    /// vertical axis (the "Van Gogh" look of NPAR Fig. 3, thesis Fig. 4.8c).
+    Elliptical,
+}
+
+impl LeafMode {
+    /// Whether leaves are drawn as particles (one primitive per leaf) rather than the model's
+    /// own geometry.
+    pub fn particles(self) -> bool {
+        self != LeafMode::Original
+    }
+}
+
 /// A type a style field can have: its kind in the schema and the numbers its range applies to.
 trait FieldValue {
     /// `number`, `integer`, `boolean`, `string` or `color` (three numbers).
@@ -59,6 +83,13 @@ impl FieldValue for bool {
 }
 
 impl FieldValue for HatchSpace {
+    const KIND: &'static str = "string";
+    fn numbers(&self) -> Vec<f32> {
+        Vec::new()
+    }
+}
+
+impl FieldValue for LeafMode {
     const KIND: &'static str = "string";
     fn numbers(&self) -> Vec<f32> {
         Vec::new()
@@ -207,11 +238,34 @@ style_fields! {
     /// HLP abstraction `1 − f` of thesis eq. 4.8: leaves move from their positions (0) to the
     /// surface of their HLP sphere (1).
     hlp_abstraction: f32 = 0.0, 0..=1;
+    /// How leaves of plants at full detail are drawn: `original` (the model's leaf geometry),
+    /// `billboard` (a camera-facing quad per leaf, SPEC R2), `reoriented` (each leaf's quad
+    /// turned away from its HLP centre, thesis 4.2 "children's book") or `elliptical`
+    /// (ellipses tangent to the HLP sphere, elongated around its vertical axis, "Van Gogh").
+    /// The particle modes draw fewer, larger leaves as a plant gets smaller on screen (SPEC P4).
+    leaf_mode: LeafMode = LeafMode::Original;
+    /// Scale of the leaf particles about their centres (the particle modes of `leaf_mode`).
+    leaf_size: f32 = 1.0, 0.25..=4;
+    /// Leaf shape (thesis 4.1): the alpha threshold moves from α_max (0: the original leaf
+    /// outline) to α_min (1: the most abstract, largest shape of the leaf shape map).
+    leaf_shape: f32 = 0.0, 0..=1;
+    /// Leaf outline thickness Δα of thesis eq. 4.1: leaf texels with α − α_t ≤ Δα are drawn in
+    /// ink (on `elliptical` leaves, where 1 − (s² + t²) ≤ Δα); 0 = no outlines.
+    leaf_outline: f32 = 0.0, 0..=1;
     /// Blend of the original normals towards the HLP normals for lighting and colour (thesis
     /// 6.1.3, 6.2).
     normal_blend: f32 = 0.5, 0..=1;
     /// Ambient share of the light, 0 (pure Lambert) to 1 (flat).
     ambient: f32 = 0.5, 0..=1;
+    /// Blend of the foliage's lighting normals towards the normals of its implicit surface
+    /// (Luft et al. 2007 §3.3, `prep::implicit`: a metaball surface over the leaf centres), 0
+    /// the leaves' own normals, 1 the crown's smooth overall shape; applied before
+    /// `normal_blend`. Plants at full detail.
+    implicit_normals: f32 = 0.0, 0..=1;
+    /// How much the density-based ambient coefficient k_a of the foliage (Luft et al. eq. 4:
+    /// darker where the leaves are denser, inside the crown) darkens the ambient light, 0 (not
+    /// at all) to 1 (fully). Plants at full detail.
+    ambient_occlusion: f32 = 0.0, 0..=1;
     /// How much the surface's own albedo darkens the hatch tone, 0 (lighting only) to 1.
     albedo_weight: f32 = 0.6, 0..=1;
     /// Contrast `scale` of thesis eq. 6.7 about `tone_reference`; 1 leaves the tone unchanged.
@@ -252,13 +306,21 @@ style_fields! {
 /// depth step draws a contour (thesis 8.2.7: "edge detection threshold … to 1").
 const PHOTOREAL_CONTOUR_THRESHOLD: f32 = 10.0;
 
+/// Photorealism from which the leaves are the model's own (`leaf_mode` `original`): the leaf
+/// primitive is a discrete choice, so it switches where every continuous parameter is half-way.
+const PHOTOREAL_ORIGINAL_LEAVES: f32 = 0.5;
+
 impl Style {
     /// The parameters actually rendered: every field moved from its value towards its
     /// photorealistic value by `photorealism` p (thesis 8.2.7), `v + (target − v)·p`:
     /// HLP abstraction and HLP normals → 0 (original geometry and lighting), contour threshold
     /// → 10 (no contours), contour and silhouette strength and silhouette support → 0 (no
     /// lines), hatch brightness → 1 (no strokes), colour → 1, saturation → 1, colour
-    /// abstraction → 0 (full, realistic colour), Gooch and toon → 0 (Lambert shading), sky → 1.
+    /// abstraction → 0 (full, realistic colour), Gooch and toon → 0 (Lambert shading), sky → 1;
+    /// leaf size → 1, leaf shape → 0 and leaf outline → 0 (the original leaves), and the leaf
+    /// mode becomes `original` from p = 0.5 on. `implicit_normals` and `ambient_occlusion`
+    /// keep their values: the implicit-surface illumination is lighting, not abstraction, and
+    /// serves photorealistic rendering as well as sketches (Luft et al. 2007 §4, Fig. 5).
     pub fn resolved(&self) -> Style {
         let p = self.photorealism;
         let to = |value: f32, target: f32| value + (target - value) * p;
@@ -276,6 +338,10 @@ impl Style {
             gooch: to(self.gooch, 0.0),
             toon: to(self.toon, 0.0),
             sky: to(self.sky, 1.0),
+            leaf_mode: if p >= PHOTOREAL_ORIGINAL_LEAVES { LeafMode::Original } else { self.leaf_mode },
+            leaf_size: to(self.leaf_size, 1.0),
+            leaf_shape: to(self.leaf_shape, 0.0),
+            leaf_outline: to(self.leaf_outline, 0.0),
             ..self.clone()
         }
     }
@@ -585,6 +651,43 @@ mod tests {
         assert!((half.hlp_abstraction - 0.3).abs() < 1e-6 && (half.color - 0.5).abs() < 1e-6);
         // Parameters the thesis does not list keep their values.
         assert_eq!((photo.hatch_map, photo.ambient, photo.ink), (sketch.hatch_map, sketch.ambient, sketch.ink));
+    }
+
+    #[test]
+    fn photorealism_brings_back_the_original_leaves() {
+        let leaves = Style {
+            leaf_mode: LeafMode::Elliptical,
+            leaf_size: 3.0,
+            leaf_shape: 0.8,
+            leaf_outline: 0.2,
+            ..Style::default()
+        };
+        let quarter = Style { photorealism: 0.25, ..leaves.clone() }.resolved();
+        assert_eq!(quarter.leaf_mode, LeafMode::Elliptical);
+        assert!((quarter.leaf_size - 2.5).abs() < 1e-6 && (quarter.leaf_shape - 0.6).abs() < 1e-6);
+        assert!((quarter.leaf_outline - 0.15).abs() < 1e-6);
+        let half = Style { photorealism: 0.5, ..leaves.clone() }.resolved();
+        assert_eq!(half.leaf_mode, LeafMode::Original);
+        let photo = Style { photorealism: 1.0, ..leaves }.resolved();
+        assert_eq!(
+            (photo.leaf_mode, photo.leaf_size, photo.leaf_shape, photo.leaf_outline),
+            (LeafMode::Original, 1.0, 0.0, 0.0)
+        );
+        let json: Style = serde_json::from_str(r#"{"leaf_mode": "reoriented"}"#).unwrap();
+        assert!(json.leaf_mode.particles() && !Style::default().leaf_mode.particles());
+        assert!(serde_json::from_str::<Style>(r#"{"leaf_mode": "round"}"#).is_err());
+        assert!(Style { leaf_size: 5.0, ..Style::default() }.validate().is_err());
+    }
+
+    #[test]
+    fn implicit_illumination_keeps_its_values_along_the_photorealism_axis() {
+        let lit = Style { implicit_normals: 0.8, ambient_occlusion: 0.6, ..Style::default() };
+        for photorealism in [0.0, 0.5, 1.0] {
+            let resolved = Style { photorealism, ..lit.clone() }.resolved();
+            assert_eq!((resolved.implicit_normals, resolved.ambient_occlusion), (0.8, 0.6));
+        }
+        assert!(Style { ambient_occlusion: 1.5, ..Style::default() }.validate().is_err());
+        assert!(Style { implicit_normals: -0.1, ..Style::default() }.validate().is_err());
     }
 
     #[test]
