@@ -62,19 +62,7 @@ fn aspect(mask: &[bool]) -> f32 {
 /// horizontal, or along x for a horizontal card).
 fn card(mesh: &mut Mesh, center: Vec3, normal: Vec3, half: f32) {
     let u = Vec3::Z.cross(normal).try_normalize().unwrap_or(Vec3::X) * half;
-    let v = normal.cross(u);
-    let first = mesh.positions.len() as u32;
-    for (p, uv) in [
-        (center - u - v, [0.0, 1.0]),
-        (center + u - v, [1.0, 1.0]),
-        (center + u + v, [1.0, 0.0]),
-        (center - u + v, [0.0, 0.0]),
-    ] {
-        mesh.positions.push(p.to_array());
-        mesh.normals.push(normal.to_array());
-        mesh.uvs.push(uv);
-    }
-    mesh.indices.extend([0, 1, 2, 0, 2, 3].map(|c| first + c));
+    mesh.push_card(center, u, normal.cross(u));
 }
 
 /// A renderer at full detail for one plant of `mesh` (foliage only) at the origin of the

@@ -295,23 +295,6 @@ mod tests {
         }
     }
 
-    /// A card like the procedural generator's: corners c ∓ u ∓ v, uv (0, 1) (1, 1) (1, 0) (0, 0).
-    fn card(mesh: &mut Mesh, center: Vec3, u: Vec3, v: Vec3) {
-        let normal = u.cross(v).normalize();
-        let first = mesh.positions.len() as u32;
-        for (p, uv) in [
-            (center - u - v, [0.0, 1.0]),
-            (center + u - v, [1.0, 1.0]),
-            (center + u + v, [1.0, 0.0]),
-            (center - u + v, [0.0, 0.0]),
-        ] {
-            mesh.positions.push(p.to_array());
-            mesh.normals.push(normal.to_array());
-            mesh.uvs.push(uv);
-        }
-        mesh.indices.extend([0, 1, 2, 0, 2, 3].map(|c| first + c));
-    }
-
     fn model(meshes: Vec<Mesh>) -> PlantModel {
         let parts =
             meshes.into_iter().map(|mesh| MeshPart { kind: PartKind::Foliage, mesh, material: material() }).collect();
@@ -322,7 +305,7 @@ mod tests {
     fn a_card_becomes_one_leaf_with_its_rectangle_and_uvs() {
         let mut mesh = Mesh::default();
         let (center, u, v) = (Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.3, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.2));
-        card(&mut mesh, center, u, v);
+        mesh.push_card(center, u, v);
         let model = model(vec![mesh]);
         let leaves = split(&model, &hlp::cluster(&model, 1.0));
         assert_eq!(leaves.len(), 1);
@@ -351,9 +334,9 @@ mod tests {
     #[test]
     fn components_follow_shared_vertices_and_leaves_take_their_majority_hlp() {
         let mut a = Mesh::default();
-        card(&mut a, Vec3::new(0.0, 0.0, 5.0), Vec3::X * 0.1, Vec3::Y * 0.1);
-        card(&mut a, Vec3::new(0.0, 0.05, 5.0), Vec3::X * 0.1, Vec3::Z * 0.1);
-        card(&mut a, Vec3::new(4.0, 0.0, 5.0), Vec3::X * 0.1, Vec3::Y * 0.1);
+        a.push_card(Vec3::new(0.0, 0.0, 5.0), Vec3::X * 0.1, Vec3::Y * 0.1);
+        a.push_card(Vec3::new(0.0, 0.05, 5.0), Vec3::X * 0.1, Vec3::Z * 0.1);
+        a.push_card(Vec3::new(4.0, 0.0, 5.0), Vec3::X * 0.1, Vec3::Y * 0.1);
         // A fan of three triangles sharing vertex 0: one leaf.
         let b = Mesh {
             positions: vec![[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0], [-1.0, 0.5, 1.0]],
@@ -400,7 +383,7 @@ mod tests {
     #[test]
     fn coverage_is_the_opaque_share_of_the_leaf() {
         let mut mesh = Mesh::default();
-        card(&mut mesh, Vec3::ZERO, Vec3::X, Vec3::Z);
+        mesh.push_card(Vec3::ZERO, Vec3::X, Vec3::Z);
         let model = model(vec![mesh]);
         let leaf = split(&model, &hlp::cluster(&model, 2.0))[0];
         // Opaque in the left quarter of the texture (u < 0.25) only.
@@ -414,7 +397,7 @@ mod tests {
     fn shuffled_prefixes_are_even_subsets() {
         let mut mesh = Mesh::default();
         for i in 0..400 {
-            card(&mut mesh, Vec3::new(i as f32, 0.0, 1.0), Vec3::X * 0.1, Vec3::Y * 0.1);
+            mesh.push_card(Vec3::new(i as f32, 0.0, 1.0), Vec3::X * 0.1, Vec3::Y * 0.1);
         }
         let model = model(vec![mesh]);
         let leaves = split(&model, &hlp::cluster(&model, 0.5));

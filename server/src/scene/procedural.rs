@@ -265,21 +265,8 @@ impl Shape {
             let a = normal.any_orthonormal_vector();
             let (sin, cos) = rng.range(0.0, TAU).sin_cos();
             let u = (a * cos + normal.cross(a) * sin) * half;
-            let v = normal.cross(u);
-            // Counter-clockwise around `normal`: u × v points along it. The stem (v = 1 in the
-            // texture) is on the −v side.
-            let first = mesh.positions.len() as u32;
-            for (corner, uv) in [
-                (centre - u - v, [0.0, 1.0]),
-                (centre + u - v, [1.0, 1.0]),
-                (centre + u + v, [1.0, 0.0]),
-                (centre - u + v, [0.0, 0.0]),
-            ] {
-                mesh.positions.push(corner.to_array());
-                mesh.normals.push(normal.to_array());
-                mesh.uvs.push(uv);
-            }
-            mesh.indices.extend([0, 1, 2, 0, 2, 3].map(|corner| first + corner));
+            // u × v points along `normal`.
+            mesh.push_card(centre, u, normal.cross(u));
         }
         mesh
     }
