@@ -18,8 +18,6 @@ struct LayerStyle {
     implicit: vec4<f32>,
 };
 
-const STYLE_SLOTS: u32 = 16u;
-
 struct Frame {
     view_proj: mat4x4<f32>,
     view: mat4x4<f32>,
@@ -29,8 +27,6 @@ struct Frame {
     viewport: vec4<f32>,
     // x: cos(-roll), y: sin(-roll)
     roll: vec4<f32>,
-    // per style slot (layer code of the object ID, see `layer_style`)
-    layers: array<LayerStyle, STYLE_SLOTS>,
 };
 
 struct Material {
@@ -46,6 +42,12 @@ struct Material {
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Reference texture coordinates R_uv of every (instance, HLP) pair (thesis eq. 6.2).
 @group(0) @binding(1) var<storage, read> references: array<vec2<f32>>;
+// The style of the layer being drawn (thesis 8.2.8): every draw holds the instances of one
+// style slot and binds that slot's block (a dynamic offset into the per-slot buffer). A lookup
+// per fragment by the object ID's layer code cost more than the rest of the shading on
+// lavapipe, and indexing a uniform array with a computed slot leaked memory every frame in
+// its version 22.3 (see tests/memory.rs).
+@group(0) @binding(2) var<uniform> layer: LayerStyle;
 @group(1) @binding(0) var<uniform> material: Material;
 @group(1) @binding(1) var base_tex: texture_2d<f32>;
 @group(1) @binding(2) var base_sampler: sampler;
@@ -122,22 +124,6 @@ fn metres_per_px(depth: f32) -> f32 {
     return select(2.0 * depth * frame.viewport.x / frame.viewport.y, frame.viewport.w, frame.viewport.w > 0.0);
 }
 
-// The style of an object: the slot of its layer code (top 8 bits; 1 terrain, i + 2 vegetation
-// layer i), the base slot 0 beyond the slots (thesis 8.2.8).
-fn layer_style(object_id: u32) -> LayerStyle {
-    let code = object_id >> 24u;
-    // A loop instead of `frame.layers[slot]`: indexing the uniform array with a computed slot
-    // leaked memory on every frame in Mesa's lavapipe 22.3 (measured: ~12 MB per frame at full
-    // detail, see tests/memory.rs).
-    var style = frame.layers[0];
-    for (var i = 1u; i < STYLE_SLOTS; i++) {
-        if i == code {
-            style = frame.layers[i];
-        }
-    }
-    return style;
-}
-
 // Thesis eq. 4.8–4.9: P' = f·P + (1 − f)·P_HLP with P_HLP = C + r·N_HLP/|N_HLP| the leaf
 // position projected onto its HLP sphere; `abstraction` is 1 − f.
 fn hlp_blend(p: vec3<f32>, hlp: vec4<f32>, abstraction: f32) -> vec3<f32> {
@@ -152,8 +138,8 @@ fn hlp_blend(p: vec3<f32>, hlp: vec4<f32>, abstraction: f32) -> vec3<f32> {
 // The HLP abstraction 1 − f (eq. 4.8) of a plant: its layer style's, moved towards the value a
 // data layer maps onto abstraction at the plant's position by that mapping's weight (thesis
 // Table 9.1; `lod_mask.zw`, zero without such a mapping).
-fn plant_abstraction(object_id: u32, lod_mask: vec4<f32>) -> f32 {
-    return mix(layer_style(object_id).hlp.z, lod_mask.z, lod_mask.w);
+fn plant_abstraction(lod_mask: vec4<f32>) -> f32 {
+    return mix(layer.hlp.z, lod_mask.z, lod_mask.w);
 }
 
 fn view_depth(world: vec3<f32>) -> f32 {
@@ -164,7 +150,7 @@ fn view_depth(world: vec3<f32>) -> f32 {
 @vertex
 fn vs_main(in: VertexIn) -> VertexOut {
     // Leaves only: billboards (kind 3) already stand for their HLP sphere.
-    let abstraction = select(0.0, plant_abstraction(in.object_id, in.lod_mask), u32(material.params.y) == 2u);
+    let abstraction = select(0.0, plant_abstraction(in.lod_mask), u32(material.params.y) == 2u);
     return vertex_out(in, hlp_blend(in.position, in.hlp, abstraction));
 }
 
@@ -257,8 +243,7 @@ fn in_plane(v: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // HLP's vertical axis ("Van Gogh", NPAR Fig. 3). The rest is the mesh vertices' `vertex_out`.
 @vertex
 fn vs_leaf(leaf: LeafIn) -> VertexOut {
-    let style = layer_style(leaf.object_id);
-    let center = hlp_blend(leaf.center, leaf.hlp, plant_abstraction(leaf.object_id, leaf.lod_mask));
+    let center = hlp_blend(leaf.center, leaf.hlp, plant_abstraction(leaf.lod_mask));
     let from_hlp = center - leaf.hlp.xyz;
     let nh = select(leaf.normal, normalize(from_hlp), leaf.hlp.w > 0.0 && length(from_hlp) > 1e-6);
     var half = vec2<f32>(length(leaf.axis_u), length(leaf.axis_v));
@@ -269,7 +254,7 @@ fn vs_leaf(leaf: LeafIn) -> VertexOut {
     // normal's side, so turned quads keep the handedness.
     let hand = select(-1.0, 1.0, dot(cross(leaf.axis_u, leaf.axis_v), leaf.normal) >= 0.0);
     var ellipse = 0.0;
-    let mode = u32(style.leaf.x);
+    let mode = u32(layer.leaf.x);
     if mode == LEAF_BILLBOARD {
         // The camera's right, up and backward axes (rows of the view matrix) in model space.
         let inverse = vec2<f32>(leaf.rotation.x, -leaf.rotation.y);
@@ -292,7 +277,7 @@ fn vs_leaf(leaf: LeafIn) -> VertexOut {
         half = vec2<f32>(ELLIPSE_ASPECT * b, b);
         ellipse = 1.0;
     }
-    let size = style.leaf.y * material.params.w;
+    let size = layer.leaf.y * material.params.w;
     let p = center + (a0 * half.x * leaf.corner.x + a1 * half.y * leaf.corner.y) * size;
     let vertex = VertexIn(p, n, leaf.uv, leaf.hlp, leaf.hlp_index, leaf.offset_scale, leaf.rotation,
         leaf.object_id, leaf.reference_base, leaf.lod_mask, leaf.reference_sphere, leaf.implicit);
@@ -315,16 +300,16 @@ struct GBuffer {
 
 // Thesis eq. 6.3–6.6: T = R + f(A)·Q_VO·O, with O the pixel's offset from the projected HLP
 // centre, brought to the HLP sphere at the centre's depth and expressed in tiles (m/π).
-fn hybrid_uv(frag: vec2<f32>, in: VertexOut, style: LayerStyle) -> vec2<f32> {
+fn hybrid_uv(frag: vec2<f32>, in: VertexOut) -> vec2<f32> {
     let center_ndc = in.hlp_clip.xy / in.hlp_clip.w;
     let center_px = (center_ndc * vec2<f32>(0.5, -0.5) + 0.5) * vec2<f32>(frame.viewport.z, frame.viewport.y);
     let depth = in.hlp_depth_radius.x;
     let radius = max(in.hlp_depth_radius.y, 1e-4);
-    let d = (frag - center_px) * metres_per_px(depth) / radius * (style.hatch.x / PI);
+    let d = (frag - center_px) * metres_per_px(depth) / radius * (layer.hatch.x / PI);
     let o = vec2<f32>(d.x, -d.y);
     let q = vec2<f32>(frame.roll.x * o.x - frame.roll.y * o.y, frame.roll.y * o.x + frame.roll.x * o.y);
     let dz = (in.view_depth - (depth - radius)) / radius;
-    let f = 1.0 + style.hatch.y * dz * dz;
+    let f = 1.0 + layer.hatch.y * dz * dz;
     return in.reference_uv + f * q;
 }
 
@@ -353,12 +338,11 @@ fn billboard_normal(frag: vec2<f32>, in: VertexOut) -> vec3<f32> {
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let frag = in.clip;
     let texel = textureSample(base_tex, base_sampler, in.uv) * material.base_color;
-    let style = layer_style(in.ids.x);
     let has_hlp = in.hlp_depth_radius.y > 0.0;
     // Terrain is hatched in image space: seen from walking height a planar object-space mapping
     // is magnified far beyond the TAM's finest level in the foreground.
-    let image_space = style.hlp.y > 0.5 || u32(material.params.y) == 0u;
-    let t = select(select(in.object_uv, hybrid_uv(frag.xy, in, style), has_hlp), frag.xy / style.hatch.w, image_space);
+    let image_space = layer.hlp.y > 0.5 || u32(material.params.y) == 0u;
+    let t = select(select(in.object_uv, hybrid_uv(frag.xy, in), has_hlp), frag.xy / layer.hatch.w, image_space);
     // Area-based footprint: the geometric mean of the two axes, so grazing terrain keeps
     // crisp (foreshortened) strokes instead of the blur of the coarsest axis.
     let tiles_per_px = sqrt(length(dpdx(t)) * length(dpdy(t)));
@@ -366,7 +350,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // most abstract shape of the leaf shape map) with the leaf shape. `inside` is how far the
     // texel lies inside the shape: α − α_t, or 1 − (s² + t²) on an elliptical leaf (the
     // ellipse equation in the particle's coordinates).
-    let alpha_t = mix(material.params.x, material.params.z, style.leaf.z);
+    let alpha_t = mix(material.params.x, material.params.z, layer.leaf.z);
     let elliptical = in.leaf.z > 0.5;
     let inside = select(texel.a - alpha_t, 1.0 - dot(in.leaf.xy, in.leaf.xy), elliptical);
     if material.params.x >= 0.0 && inside < 0.0 {
@@ -374,7 +358,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     }
     // Thesis eq. 4.1: leaf texels with α − α_t ≤ Δα are the leaf's outline, drawn in ink by
     // the compose pass (albedo alpha OUTLINE_ALPHA instead of 1).
-    let outline = u32(material.params.y) == 2u && style.leaf.w > 0.0 && inside <= style.leaf.w;
+    let outline = u32(material.params.y) == 2u && layer.leaf.w > 0.0 && inside <= layer.leaf.w;
     let dither = screen_door(frag.xy);
     if dither < in.lod_mask.x || dither >= in.lod_mask.y {
         discard;
@@ -390,9 +374,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let ka = length(in.implicit);
     var ambient_k = 1.0;
     if ka > 1e-4 {
-        let blended = mix(n, in.implicit / ka, style.implicit.x);
+        let blended = mix(n, in.implicit / ka, layer.implicit.x);
         n = select(in.implicit / ka, normalize(blended), length(blended) > 1e-4);
-        ambient_k = max(mix(1.0, ka, style.implicit.y), 1e-3);
+        ambient_k = max(mix(1.0, ka, layer.implicit.y), 1e-3);
     }
     var e = vec2<f32>(0.0);
     var radius_px = 0.0;
@@ -402,7 +386,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
             nh = billboard_normal(frag.xy, in);
             n = nh;
         }
-        n = normalize(mix(n, nh, style.hlp.x));
+        n = normalize(mix(n, nh, layer.hlp.x));
         let ev = (frame.view * vec4<f32>(nh, 0.0)).xy;
         e = select(vec2<f32>(0.0), normalize(ev), length(ev) > 1e-4);
         radius_px = in.hlp_depth_radius.y / metres_per_px(in.hlp_depth_radius.x);
@@ -411,7 +395,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // Thesis 6.2: abstract colour, the texture blended towards the material's average colour.
     // Elliptical leaves take the material's average colour: their shape is not the texture's.
     let color = select(texel.rgb, material.average_color.rgb, elliptical);
-    out.albedo = vec4<f32>(mix(color, material.average_color.rgb, style.hlp.w), select(1.0, OUTLINE_ALPHA, outline));
+    out.albedo = vec4<f32>(mix(color, material.average_color.rgb, layer.hlp.w), select(1.0, OUTLINE_ALPHA, outline));
     out.normal = vec4<f32>(n * ambient_k, tiles_per_px);
     out.depth = vec2<f32>(in.view_depth, radius_px);
     out.ids = in.ids;

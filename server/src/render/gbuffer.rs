@@ -100,7 +100,23 @@ pub struct FrameUniform {
     camera_pos: [f32; 4],
     viewport: [f32; 4],
     roll: [f32; 4],
-    layers: [LayerUniform; STYLE_SLOTS],
+}
+
+/// Bytes between the style slots' [`LayerUniform`]s in the layer buffer: each draw binds its
+/// slot's block at a dynamic offset, which must be a multiple of the device's uniform offset
+/// alignment (256 at most by the WebGPU limits).
+pub const LAYER_STRIDE: u64 = 256;
+
+/// The [`LayerUniform`] of every style slot at [`LAYER_STRIDE`] (see
+/// [`super::style::FrameStyle::slots`]); slots beyond `slots` take the default style.
+pub fn layer_uniforms(slots: &[Style]) -> Vec<u8> {
+    let mut bytes = vec![0u8; STYLE_SLOTS * LAYER_STRIDE as usize];
+    let default = Style::default();
+    for (slot, chunk) in bytes.chunks_exact_mut(LAYER_STRIDE as usize).enumerate() {
+        let layer = LayerUniform::new(slots.get(slot).unwrap_or(&default));
+        chunk[..std::mem::size_of::<LayerUniform>()].copy_from_slice(bytemuck::bytes_of(&layer));
+    }
+    bytes
 }
 
 /// The geometry-pass parameters of one style slot (`LayerStyle` in `shaders/gbuffer.wgsl`).
@@ -131,16 +147,11 @@ impl LayerUniform {
 }
 
 impl FrameUniform {
-    /// The uniforms for `camera` rendering a `width` × `height` image with the resolved style
-    /// of every slot (see [`super::style::FrameStyle::slots`]).
-    pub fn new(camera: &Camera, slots: &[Style], width: u32, height: u32) -> FrameUniform {
+    /// The uniforms for `camera` rendering a `width` × `height` image.
+    pub fn new(camera: &Camera, width: u32, height: u32) -> FrameUniform {
         let view = camera.view();
         let p = camera.position;
         let roll = -camera.roll.to_radians();
-        let mut layers = [LayerUniform::new(&Style::default()); STYLE_SLOTS];
-        for (layer, style) in layers.iter_mut().zip(slots) {
-            *layer = LayerUniform::new(style);
-        }
         FrameUniform {
             view_proj: (camera.projection(width as f32 / height as f32) * view).to_cols_array_2d(),
             view: view.to_cols_array_2d(),
@@ -152,7 +163,6 @@ impl FrameUniform {
                 camera.plan_metres_per_pixel(width).unwrap_or(0.0),
             ],
             roll: [roll.cos(), roll.sin(), 0.0, 0.0],
-            layers,
         }
     }
 }
@@ -317,6 +327,21 @@ fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGrou
     }
 }
 
+/// A bind group layout entry for the [`LayerUniform`] of one style slot, bound per draw at a
+/// dynamic offset into the layer buffer (see [`layer_uniforms`]).
+fn layer_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: true,
+            min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<LayerUniform>() as u64),
+        },
+        count: None,
+    }
+}
+
 /// A bind group layout entry for a read-only storage buffer.
 pub fn storage_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -362,6 +387,7 @@ impl GeometryPass {
             entries: &[
                 uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 storage_entry(1, wgpu::ShaderStages::VERTEX),
+                layer_entry(2),
             ],
         });
         let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -497,7 +523,6 @@ impl GeometryPass {
             multiview_mask: None,
         });
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, frame, &[]);
-        scene.draw(&mut pass, visible, &self.leaf_pipeline);
+        scene.draw(&mut pass, visible, frame, &self.leaf_pipeline);
     }
 }

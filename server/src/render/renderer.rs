@@ -2,7 +2,7 @@
 //! read-back.
 
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
-use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, render_target};
+use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, LayerUniform, layer_uniforms, render_target};
 use super::parametrization::ReferenceCoords;
 use super::post::{self, CONTOUR_FORMAT, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT};
 use super::profile::{PassTimes, Recorder};
@@ -232,7 +232,12 @@ impl Renderer {
         let device = &self.gpu.device;
         let frame_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("frame"),
-            contents: bytemuck::bytes_of(&FrameUniform::new(camera, slots, width, height)),
+            contents: bytemuck::bytes_of(&FrameUniform::new(camera, width, height)),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let layer_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("layers"),
+            contents: &layer_uniforms(slots),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -241,6 +246,14 @@ impl Renderer {
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: references.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &layer_buffer,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<LayerUniform>() as u64),
+                    }),
+                },
             ],
         })
     }

@@ -5,10 +5,11 @@
 
 use super::bake::{BakeDraw, BakeTile, Baker};
 use super::gbuffer::{
-    GeometryPass, Instance, LeafVertex, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex, average_color, object_id,
+    GeometryPass, Instance, LAYER_STRIDE, LeafVertex, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex,
+    average_color, object_id,
 };
 use super::parametrization::RefKey;
-use super::style::Style;
+use super::style::{STYLE_SLOTS, Style, style_slot};
 use super::{Gpu, RenderError};
 use crate::prep::cache::{DiskCache, KeyBuilder};
 use crate::prep::hlp::{self, Hlps, Sphere};
@@ -174,9 +175,11 @@ impl From<&Style> for LayerDraw {
 /// points the instances index.
 pub struct VisibleSet {
     instances: Vec<Instance>,
-    batches: Vec<(usize, LodLevel, Range<u32>)>,
-    /// Runs of plants at full detail drawn with leaf particles: (species, share, instances).
-    particle_batches: Vec<(usize, usize, Range<u32>)>,
+    /// Runs of plants drawn with the species' meshes: (species, level, style slot, instances).
+    batches: Vec<(usize, LodLevel, usize, Range<u32>)>,
+    /// Runs of plants at full detail drawn with leaf particles: (species, share, style slot,
+    /// instances).
+    particle_batches: Vec<(usize, usize, usize, Range<u32>)>,
     /// Index ranges of the visible terrain chunks at their levels of detail.
     terrain_ranges: Vec<Range<u32>>,
     references: Vec<RefKey>,
@@ -730,14 +733,18 @@ impl SceneGpu {
         // Pixels per metre at unit depth (perspective) or everywhere (plan view).
         let plan = camera.plan_metres_per_pixel(width);
         let px_per_metre = height as f32 / (2.0 * (camera.fov.to_radians() * 0.5).tan());
-        let mut runs: Vec<Vec<Instance>> = vec![Vec::new(); self.species.len() * 3];
-        let mut particle_runs: Vec<Vec<Instance>> = vec![Vec::new(); self.species.len() * PARTICLE_SHARES.len()];
+        // One run per species, level (or particle share) and style slot: a draw binds its
+        // slot's layer style once (per-pixel lookups of it cost more than the shading).
+        let mut runs: Vec<Vec<Instance>> = vec![Vec::new(); self.species.len() * 3 * STYLE_SLOTS];
+        let mut particle_runs: Vec<Vec<Instance>> =
+            vec![Vec::new(); self.species.len() * PARTICLE_SHARES.len() * STYLE_SLOTS];
         let mut stats = DrawStats { plants: self.plants.len() as u64, ..DrawStats::default() };
         let mut references = References::default();
         for (index, plant) in self.plants.iter().enumerate() {
             let s = &self.species[plant.species];
             let i = &plant.instance;
             let drawn_as = layer(i.object_id);
+            let slot = style_slot(i.object_id);
             if !drawn_as.visible {
                 continue;
             }
@@ -777,8 +784,10 @@ impl SceneGpu {
                 };
                 let instance = Instance { mask: draw.mask, reference_base, reference_sphere, data_abstraction, ..*i };
                 match share {
-                    Some(b) => particle_runs[plant.species * PARTICLE_SHARES.len() + b].push(instance),
-                    None => runs[plant.species * 3 + draw.level.index()].push(instance),
+                    Some(b) => {
+                        particle_runs[(plant.species * PARTICLE_SHARES.len() + b) * STYLE_SLOTS + slot].push(instance)
+                    }
+                    None => runs[(plant.species * 3 + draw.level.index()) * STYLE_SLOTS + slot].push(instance),
                 }
             }
         }
@@ -807,15 +816,26 @@ impl SceneGpu {
             terrain_ranges.push(range);
         }
         stats.source_triangles = self.source_triangles;
+        // Front to back within each run, so the depth test rejects hidden fragments early.
+        let distance = |i: &Instance| eye.distance_squared(Vec3::from_slice(&i.offset_scale[..3]));
+        for run in runs.iter_mut().chain(particle_runs.iter_mut()) {
+            run.sort_unstable_by(|a, b| distance(a).total_cmp(&distance(b)));
+        }
         let mut instances = vec![terrain];
         let batches = append_runs(&mut instances, runs)
             .into_iter()
-            .map(|(run, range)| (run / 3, LodLevel::ALL[run % 3], range))
+            .map(|(run, range)| {
+                let (kind, slot) = (run / STYLE_SLOTS, run % STYLE_SLOTS);
+                (kind / 3, LodLevel::ALL[kind % 3], slot, range)
+            })
             .collect();
         let shares = PARTICLE_SHARES.len();
         let particle_batches = append_runs(&mut instances, particle_runs)
             .into_iter()
-            .map(|(run, range)| (run / shares, run % shares, range))
+            .map(|(run, range)| {
+                let (kind, slot) = (run / STYLE_SLOTS, run % STYLE_SLOTS);
+                (kind / shares, kind % shares, slot, range)
+            })
             .collect();
         stats.reference_points = references.keys.len() as u64;
         VisibleSet { instances, batches, particle_batches, terrain_ranges, references: references.keys, stats }
@@ -846,38 +866,50 @@ impl SceneGpu {
     }
 
     /// Records the draws of the terrain and every visible instance run; plants drawn with leaf
-    /// particles last, their leaves with `leaf_pipeline`.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, visible: &VisibleSet, leaf_pipeline: &wgpu::RenderPipeline) {
+    /// particles last, their leaves with `leaf_pipeline`. Each draw binds `frame` (group 0) at
+    /// the layer-style offset of its style slot.
+    pub fn draw(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        visible: &VisibleSet,
+        frame: &wgpu::BindGroup,
+        leaf_pipeline: &wgpu::RenderPipeline,
+    ) {
         let bytes = std::mem::size_of_val(visible.instances.as_slice()) as u64;
+        let layer_offset = |slot: usize| [(slot as u64 * LAYER_STRIDE) as u32];
         pass.set_vertex_buffer(1, self.instance_buffer.slice(..bytes));
+        pass.set_bind_group(0, frame, &layer_offset(style_slot(object_id(TERRAIN_LAYER_CODE, 0))));
         pass.set_bind_group(1, &self.terrain.material, &[]);
         pass.set_vertex_buffer(0, self.terrain.vertices.slice(..));
         pass.set_index_buffer(self.terrain.indices.slice(..), wgpu::IndexFormat::Uint32);
         for range in &visible.terrain_ranges {
             pass.draw_indexed(range.clone(), 0, 0..1);
         }
-        let mut draw = |mesh: &GpuMesh, instances: Range<u32>| {
+        let draw = |pass: &mut wgpu::RenderPass<'_>, mesh: &GpuMesh, instances: Range<u32>| {
             pass.set_bind_group(1, &mesh.material, &[]);
             pass.set_vertex_buffer(0, mesh.vertices.slice(..));
             pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..mesh.index_count, 0, instances);
         };
-        for (species, level, instances) in &visible.batches {
+        for (species, level, slot, instances) in &visible.batches {
+            pass.set_bind_group(0, frame, &layer_offset(*slot));
             for mesh in &self.species[*species].levels[level.index()] {
-                draw(mesh, instances.clone());
+                draw(pass, mesh, instances.clone());
             }
         }
-        for (species, _, instances) in &visible.particle_batches {
+        for (species, _, slot, instances) in &visible.particle_batches {
+            pass.set_bind_group(0, frame, &layer_offset(*slot));
             let s = &self.species[*species];
             for &wood in &s.particles.wood {
-                draw(&s.levels[LodLevel::Full.index()][wood], instances.clone());
+                draw(pass, &s.levels[LodLevel::Full.index()][wood], instances.clone());
             }
         }
         if visible.particle_batches.is_empty() {
             return;
         }
         pass.set_pipeline(leaf_pipeline);
-        for (species, share, instances) in &visible.particle_batches {
+        for (species, share, slot, instances) in &visible.particle_batches {
+            pass.set_bind_group(0, frame, &layer_offset(*slot));
             for leaves in &self.species[*species].particles.leaves {
                 pass.set_bind_group(1, &leaves.materials[*share], &[]);
                 pass.set_vertex_buffer(0, leaves.vertices.slice(..));
