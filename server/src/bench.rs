@@ -171,11 +171,9 @@ fn walk(scene: &Scene, frames: usize, step: f32) -> Vec<Camera> {
         .collect()
 }
 
+/// Encodes a frame as the server does (JPEG, quality 80); returns its size in bytes.
 fn encode_jpeg(image: &image::RgbaImage) -> Result<usize, image::ImageError> {
-    let rgb = image::DynamicImage::ImageRgba8(image.clone()).to_rgb8();
-    let mut bytes = Vec::new();
-    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, 80).encode_image(&rgb)?;
-    Ok(bytes.len())
+    Ok(crate::api::view::ImageFormat::Jpeg.encode(image, Some(80))?.len())
 }
 
 /// Peak resident set size of this process in MiB (Linux; 0 elsewhere).
