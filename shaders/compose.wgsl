@@ -118,7 +118,7 @@ fn hatch_color_filter(slot: HatchColor, darkness: f32, coords: vec2<f32>, base: 
 // style).
 fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
     let darkness = data_hatch_darkness(data_at(p));
-    if all(darkness <= vec3<f32>(0.0)) {
+    if !HATCH_COLORS || all(darkness <= vec3<f32>(0.0)) {
         return rgb;
     }
     let coords = textureLoad(hatch_tex, p, 0).xy;
@@ -208,32 +208,54 @@ fn sky_color(frag: vec2<f32>, size: vec2<u32>) -> vec3<f32> {
     return mix(post.sky_horizon.rgb, post.sky_zenith.rgb, sqrt(saturate(z / len)));
 }
 
+// The style of the pixel (thesis 8.2.8), or false where its style slot belongs to another
+// art-map group's compose pass.
+fn style_of_group(p: vec2<i32>) -> bool {
+    use_style(textureLoad(id_tex, p, 0).x);
+    return u32(post.silhouette.w) == u32(styles.frame_info.x);
+}
+
+// Contour ink by the style's contour strength (thesis eq. 5.1, 5.2).
+fn contour_part(p: vec2<i32>, size: vec2<u32>) -> f32 {
+    if post.tone.w > 0.0 {
+        return contour_ink(p, size) * post.tone.w;
+    }
+    return 0.0;
+}
+
+// The final colour: the base with the ink over it, tinted by the data and with the data's
+// coloured hatchings.
+fn finish(p: vec2<i32>, base: vec3<f32>, ink: f32) -> vec4<f32> {
+    return vec4<f32>(hatch_colors_over(p, data_tint(data_at(p), mix(base, post.ink.rgb, ink))), 1.0);
+}
+
+// The geometry's pixels (the pipeline's depth test passes only where the G-buffer pass drew).
 @fragment
 fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(frag.xy);
-    use_style(textureLoad(id_tex, p, 0).x);
-    if u32(post.silhouette.w) != u32(styles.frame_info.x) {
+    if !style_of_group(p) {
         discard;
     }
     let size = textureDimensions(contour_tex);
-    var ink = 0.0;
-    if post.tone.w > 0.0 {
-        ink = contour_ink(p, size) * post.tone.w;
+    var ink = max(contour_part(p, size), outline_ink(textureLoad(albedo_tex, p, 0).a));
+    // The tone is only needed for strokes (a photorealistic style draws none).
+    if post.hatch.x > 0.0 || post.silhouette.z > 0.0 {
+        let t = data_tone(data_at(p), blurred_tone(p, size));
+        // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
+        ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
+        ink = max(ink, silhouette_ink(p, t, size));
     }
-    var base: vec3<f32>;
-    let coverage = textureLoad(albedo_tex, p, 0).a;
-    if coverage > 0.5 {
-        ink = max(ink, outline_ink(coverage));
-        // The tone is only needed for strokes (a photorealistic style draws none).
-        if post.hatch.x > 0.0 || post.silhouette.z > 0.0 {
-            let t = data_tone(data_at(p), blurred_tone(p, size));
-            // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
-            ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
-            ink = max(ink, silhouette_ink(p, t, size));
-        }
-        base = mix(post.paper.rgb, encode_srgb(surface_color(p)), post.color.x);
-    } else {
-        base = mix(post.paper.rgb, sky_color(frag.xy, size), post.color2.y);
+    return finish(p, mix(post.paper.rgb, encode_srgb(surface_color(p)), post.color.x), ink);
+}
+
+// The background's pixels: paper or sky, and contours that the depth pre-filter moved onto
+// them.
+@fragment
+fn fs_sky(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
+    let p = vec2<i32>(frag.xy);
+    if !style_of_group(p) {
+        discard;
     }
-    return vec4<f32>(hatch_colors_over(p, data_tint(data_at(p), mix(base, post.ink.rgb, ink))), 1.0);
+    let size = textureDimensions(contour_tex);
+    return finish(p, mix(post.paper.rgb, sky_color(frag.xy, size), post.color2.y), contour_part(p, size));
 }

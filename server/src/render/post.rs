@@ -4,7 +4,7 @@
 //! one render target: [`prefilter`] (thesis eq. 5.4, optional), [`contour`] (eq. 5.1 and the
 //! tone of 6.1.3) and [`compose`] (eq. 5.2, tone blur, TAM hatching, SAM silhouettes, paper).
 
-use super::gbuffer::{texture_entry, uniform_layout_entry};
+use super::gbuffer::{DEPTH_FORMAT, texture_entry, uniform_layout_entry};
 
 const FULLSCREEN: &str = include_str!("../../../shaders/fullscreen.wgsl");
 const POST_COMMON: &str = include_str!("../../../shaders/post_common.wgsl");
@@ -66,6 +66,151 @@ pub struct FullscreenPass {
     layout: wgpu::BindGroupLayout,
 }
 
+/// Compiles a post pass's WGSL source, prefixed with the shared vertex stage and uniform block.
+fn shader_module(device: &wgpu::Device, label: &'static str, source: &str) -> wgpu::ShaderModule {
+    let code = format!("{FULLSCREEN}\n{POST_COMMON}\n{source}");
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(code.into()),
+    })
+}
+
+/// The bind group layout of a post pass: the uniform block (binding 0), then `inputs`.
+fn input_layout(device: &wgpu::Device, label: &'static str, inputs: &[Input]) -> wgpu::BindGroupLayout {
+    let mut entries = vec![uniform_layout_entry(0)];
+    entries.extend(inputs.iter().enumerate().map(|(i, input)| input.layout_entry(i as u32 + 1)));
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
+}
+
+/// How a full-screen draw is limited to part of the image by the G-buffer's depth (reverse Z:
+/// 0 where nothing was drawn). The depth test is the one way to skip pixels on lavapipe: a
+/// branch in a shader runs both sides for every pixel, the early depth test leaves out whole
+/// groups of 8 pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Gate {
+    /// Every pixel (no depth attachment).
+    None,
+    /// Only pixels with geometry.
+    Geometry,
+    /// Only background pixels (the sky).
+    Background,
+}
+
+impl Gate {
+    fn depth_stencil(self) -> Option<wgpu::DepthStencilState> {
+        // The full-screen triangle lies at depth 0, so it is nearer than (reverse Z: less
+        // than) every drawn pixel and equal to the cleared background.
+        let compare = match self {
+            Gate::None => return None,
+            Gate::Geometry => wgpu::CompareFunction::Less,
+            Gate::Background => wgpu::CompareFunction::GreaterEqual,
+        };
+        Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(false),
+            depth_compare: Some(compare),
+            stencil: Default::default(),
+            bias: Default::default(),
+        })
+    }
+}
+
+/// A pipeline drawing the full-screen triangle with `entry_point` into `output`, limited by
+/// `gate`, with values for the shader's override constants.
+fn fullscreen_pipeline(
+    device: &wgpu::Device,
+    label: &'static str,
+    shader: &wgpu::ShaderModule,
+    layout: &wgpu::BindGroupLayout,
+    (entry_point, constants): (&str, &[(&str, f64)]),
+    output: wgpu::TextureFormat,
+    gate: Gate,
+) -> wgpu::RenderPipeline {
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: shader,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: gate.depth_stencil(),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: shader,
+            entry_point: Some(entry_point),
+            compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
+            targets: &[Some(wgpu::ColorTargetState {
+                format: output,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// Binds the uniform buffer and the inputs in binding order.
+fn input_bind_group(
+    device: &wgpu::Device,
+    label: &'static str,
+    layout: &wgpu::BindGroupLayout,
+    uniform: &wgpu::Buffer,
+    inputs: &[wgpu::BindingResource<'_>],
+) -> wgpu::BindGroup {
+    let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
+    entries.extend(
+        inputs
+            .iter()
+            .enumerate()
+            .map(|(i, resource)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: resource.clone() }),
+    );
+    device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+}
+
+/// Records one render pass over `target` (cleared or loaded) that draws the full-screen
+/// triangle with each pipeline in turn; `depth` is the G-buffer depth that gated pipelines
+/// test against (read only).
+fn record_fullscreen(
+    encoder: &mut wgpu::CommandEncoder,
+    label: &'static str,
+    (target, load): (&wgpu::TextureView, wgpu::LoadOp<wgpu::Color>),
+    depth: Option<&wgpu::TextureView>,
+    bind_group: &wgpu::BindGroup,
+    pipelines: &[&wgpu::RenderPipeline],
+) {
+    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load, store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: depth.map(|view| wgpu::RenderPassDepthStencilAttachment {
+            view,
+            depth_ops: None,
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_bind_group(0, bind_group, &[]);
+    for pipeline in pipelines {
+        pass.set_pipeline(pipeline);
+        pass.draw(0..3, 0..1);
+    }
+}
+
 impl FullscreenPass {
     /// Builds a pass from a WGSL source (prefixed with the shared vertex stage and uniform
     /// block), its fragment entry point, its inputs in binding order and its output format.
@@ -77,45 +222,9 @@ impl FullscreenPass {
         inputs: &[Input],
         output: wgpu::TextureFormat,
     ) -> FullscreenPass {
-        let code = format!("{FULLSCREEN}\n{POST_COMMON}\n{source}");
-        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(code.into()),
-        });
-        let mut entries = vec![uniform_layout_entry(0)];
-        entries.extend(inputs.iter().enumerate().map(|(i, input)| input.layout_entry(i as u32 + 1)));
-        let layout =
-            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(label),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_fullscreen"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some(entry_point),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: output,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let shader = shader_module(device, label, source);
+        let layout = input_layout(device, label, inputs);
+        let pipeline = fullscreen_pipeline(device, label, &shader, &layout, (entry_point, &[]), output, Gate::None);
         FullscreenPass { label, pipeline, layout }
     }
 
@@ -126,60 +235,79 @@ impl FullscreenPass {
         uniform: &wgpu::Buffer,
         inputs: &[wgpu::BindingResource<'_>],
     ) -> wgpu::BindGroup {
-        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
-        entries.extend(
-            inputs
-                .iter()
-                .enumerate()
-                .map(|(i, resource)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: resource.clone() }),
-        );
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(self.label),
-            layout: &self.layout,
-            entries: &entries,
-        })
+        input_bind_group(device, self.label, &self.layout, uniform, inputs)
     }
 
-    /// Records the pass: every pixel of `target` is written (or cleared, where the shader
-    /// discards).
+    /// Records the pass: every pixel of `target` is written.
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::TextureView, bind_group: &wgpu::BindGroup) {
-        self.record(encoder, target, bind_group, wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT));
+        let clear = wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT);
+        record_fullscreen(encoder, self.label, (target, clear), None, bind_group, &[&self.pipeline]);
     }
+}
 
-    /// Records the pass over what `target` holds: pixels the shader discards keep their value
-    /// (the compose pass of a further art-map group).
-    pub fn encode_over(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        target: &wgpu::TextureView,
-        bind_group: &wgpu::BindGroup,
-    ) {
-        self.record(encoder, target, bind_group, wgpu::LoadOp::Load);
-    }
+/// The compose pass (`shaders/compose.wgsl` with `shaders/data_common.wgsl`): the background
+/// (`fs_sky`) and the geometry (`fs_compose`) are drawn by separate pipelines gated by the
+/// G-buffer depth ([`Gate`]), each compiled with and without the coloured hatchings of data
+/// layers (the `HATCH_COLORS` override), so no pixel runs code it does not need.
+pub struct ComposePass {
+    layout: wgpu::BindGroupLayout,
+    /// `[sky, geometry]` without the hatch-colour slots, then with them.
+    pipelines: [[wgpu::RenderPipeline; 2]; 2],
+}
 
-    fn record(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        target: &wgpu::TextureView,
-        bind_group: &wgpu::BindGroup,
-        load: wgpu::LoadOp<wgpu::Color>,
-    ) {
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some(self.label),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: target,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations { load, store: wgpu::StoreOp::Store },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
+impl ComposePass {
+    const LABEL: &'static str = "compose";
+
+    /// Compiles the four pipelines. Inputs: contour + tone, depth + HLP radius, IDs, hatch
+    /// coordinates + E, normal + tiles per pixel, albedo, the array of all TAMs, SAM, TAM
+    /// sampler, SAM sampler, data layers ([`super::projection::DATA_FORMAT`]), the
+    /// hatch-colour slots ([`super::projection::ProjectionPass::hatch_colors`]).
+    pub fn new(device: &wgpu::Device) -> ComposePass {
+        use Input::*;
+        let source = concat!(
+            include_str!("../../../shaders/data_common.wgsl"),
+            "\n",
+            include_str!("../../../shaders/compose.wgsl")
+        );
+        let shader = shader_module(device, Self::LABEL, source);
+        let layout = input_layout(
+            device,
+            Self::LABEL,
+            &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform],
+        );
+        let pipelines = [0.0, 1.0].map(|hatch_colors| {
+            let constants = [("HATCH_COLORS", hatch_colors)];
+            [("fs_sky", Gate::Background), ("fs_compose", Gate::Geometry)].map(|(entry, gate)| {
+                fullscreen_pipeline(device, Self::LABEL, &shader, &layout, (entry, &constants), OUTPUT_FORMAT, gate)
+            })
         });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, bind_group, &[]);
-        pass.draw(0..3, 0..1);
+        ComposePass { layout, pipelines }
+    }
+
+    /// Binds the uniform buffer and the inputs in binding order.
+    pub fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        uniform: &wgpu::Buffer,
+        inputs: &[wgpu::BindingResource<'_>],
+    ) -> wgpu::BindGroup {
+        input_bind_group(device, Self::LABEL, &self.layout, uniform, inputs)
+    }
+
+    /// Records the pass of one art-map group into `target`, gated by the G-buffer `depth`:
+    /// the first group clears the target, further groups draw over it (their shaders discard
+    /// the pixels of other groups). `hatch_colors`: whether the frame has coloured hatchings.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        (target, depth): (&wgpu::TextureView, &wgpu::TextureView),
+        bind_group: &wgpu::BindGroup,
+        first: bool,
+        hatch_colors: bool,
+    ) {
+        let load = if first { wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT) } else { wgpu::LoadOp::Load };
+        let [sky, geometry] = &self.pipelines[usize::from(hatch_colors)];
+        record_fullscreen(encoder, Self::LABEL, (target, load), Some(depth), bind_group, &[sky, geometry]);
     }
 }
 
@@ -205,23 +333,6 @@ pub fn contour(device: &wgpu::Device) -> FullscreenPass {
         "fs_contour",
         &[Input::Float, Input::Float, Input::Float, Input::Uint],
         CONTOUR_FORMAT,
-    )
-}
-
-/// The compose pass (`shaders/compose.wgsl` with `shaders/data_common.wgsl`). Inputs: contour +
-/// tone, depth + HLP radius, IDs, hatch coordinates + E, normal + tiles per pixel, albedo, the
-/// array of all TAMs, SAM, TAM sampler, SAM sampler, data layers
-/// ([`super::projection::DATA_FORMAT`]), the hatch-colour slots
-/// ([`super::projection::ProjectionPass::hatch_colors`]).
-pub fn compose(device: &wgpu::Device) -> FullscreenPass {
-    use Input::*;
-    FullscreenPass::new(
-        device,
-        "compose",
-        concat!(include_str!("../../../shaders/data_common.wgsl"), "\n", include_str!("../../../shaders/compose.wgsl")),
-        "fs_compose",
-        &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform],
-        OUTPUT_FORMAT,
     )
 }
 

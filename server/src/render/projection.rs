@@ -65,6 +65,13 @@ pub struct DataView {
     pub time: Option<DateTime<Utc>>,
 }
 
+impl DataView {
+    /// Whether any mapping draws coloured hatchings (the compose pass compiles them only then).
+    pub fn has_hatch_colors(&self) -> bool {
+        self.mappings.iter().any(|m| m.mapping.target == MappingTarget::HatchColor)
+    }
+}
+
 /// Code of a target in the shader (`Slot.params.x`); 0 for abstraction, which the geometry
 /// stage draws (see [`ProjectionPass::plant_abstraction`]).
 fn feature_code(target: MappingTarget) -> f32 {

@@ -4,7 +4,7 @@
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
 use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, LayerUniform, layer_uniforms, render_target};
 use super::parametrization::ReferenceCoords;
-use super::post::{self, CONTOUR_FORMAT, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT};
+use super::post::{self, CONTOUR_FORMAT, ComposePass, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT};
 use super::profile::{PassTimes, Recorder};
 use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
 use super::scene_gpu::{DrawStats, LayerDraw, SceneGpu};
@@ -25,7 +25,7 @@ pub struct Renderer {
     geometry: GeometryPass,
     prefilter: FullscreenPass,
     contour: FullscreenPass,
-    compose: FullscreenPass,
+    compose: ComposePass,
     copy: FullscreenPass,
     projection: ProjectionPass,
     scene: SceneGpu,
@@ -146,7 +146,7 @@ impl Renderer {
             layer_names: scene.layers.iter().map(|l| l.name.clone()).collect(),
             prefilter: post::prefilter(&gpu.device),
             contour: post::contour(&gpu.device),
-            compose: post::compose(&gpu.device),
+            compose: ComposePass::new(&gpu.device),
             copy: post::copy(&gpu.device),
             projection: ProjectionPass::new(&gpu, scene),
             art: ArtTextures::defaults(&gpu.device, &gpu.queue),
@@ -563,11 +563,8 @@ impl Renderer {
         self.projection.encode(&self.gpu, recorder.encoder(), data_layers, &data_inputs, data)?;
         recorder.mark("data")?;
         for (group, inputs) in compose_inputs.iter().enumerate() {
-            if group == 0 {
-                self.compose.encode(recorder.encoder(), output_view, inputs);
-            } else {
-                self.compose.encode_over(recorder.encoder(), output_view, inputs);
-            }
+            let targets = (output_view, &gbuffer.depth);
+            self.compose.encode(recorder.encoder(), targets, inputs, group == 0, data.has_hatch_colors());
         }
         recorder.mark("compose")?;
         let mut timer = recorder.submit();
