@@ -1,4 +1,4 @@
-// Post pass 2: isolated-pixel removal (thesis eq. 5.2), tone blur, hatching with a tonal art
+// Post pass 3: isolated-pixel removal (thesis eq. 5.2), tone blur (vertical half), hatching with a tonal art
 // map on the hybrid parametrization (thesis 6.1), stylized silhouettes with a silhouette art
 // map (thesis 5.2), composited on paper or, with colour (thesis 6.2, 8.2.6–8.2.7), on the
 // shaded surface colour and the sky. Every pixel uses the style of its layer (thesis 8.2.8); a
@@ -18,6 +18,8 @@
 @group(0) @binding(8) var sam: texture_2d<f32>;
 @group(0) @binding(9) var tam_sampler: sampler;
 @group(0) @binding(10) var sam_sampler: sampler;
+// Bindings 11, 12: data_common.wgsl.
+@group(0) @binding(13) var tone_tex: texture_2d<f32>;
 
 const MAX_SUPPORT: i32 = 16;
 const LUMA: vec3<f32> = vec3<f32>(0.2126, 0.7152, 0.0722);
@@ -38,28 +40,10 @@ fn contour_ink(p: vec2<i32>, size: vec2<u32>) -> f32 {
     return p0 * saturate(count - 2.0);
 }
 
-// Gaussian blur of the tone image (thesis Fig. 6.9d) with radius post.tone2.y, sigma = radius / 2.
-fn blurred_tone(p: vec2<i32>, size: vec2<u32>) -> f32 {
-    let radius = i32(post.tone2.y);
-    if radius == 0 {
-        return textureLoad(contour_tex, p, 0).g;
-    }
-    let sigma = max(post.tone2.y * 0.5, 0.5);
-    // The 2D Gaussian is separable: one exp per offset, weights multiplied per tap.
-    var g: array<f32, 9>;
-    for (var d = 0; d <= radius; d++) {
-        g[d] = exp(-f32(d * d) / (2.0 * sigma * sigma));
-    }
-    var sum = 0.0;
-    var weight = 0.0;
-    for (var dy = -radius; dy <= radius; dy++) {
-        for (var dx = -radius; dx <= radius; dx++) {
-            let w = g[abs(dx)] * g[abs(dy)];
-            sum += w * textureLoad(contour_tex, clamp_coord(p + vec2<i32>(dx, dy), size), 0).g;
-            weight += w;
-        }
-    }
-    return sum / weight;
+// The tone blurred by the style's Gaussian (thesis Fig. 6.9d): the vertical half over the
+// horizontally blurred tone of the tone-blur pass.
+fn blurred_tone(p: vec2<i32>) -> f32 {
+    return gaussian_tone(tone_tex, 0u, p, vec2<i32>(0, 1));
 }
 
 // The TAM mip level at pixel p: it follows the texture's tiles per pixel so strokes keep their
@@ -240,7 +224,7 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     var ink = max(contour_part(p, size), outline_ink(textureLoad(albedo_tex, p, 0).a));
     // The tone is only needed for strokes (a photorealistic style draws none).
     if post.hatch.x > 0.0 || post.silhouette.z > 0.0 {
-        let t = data_tone(data_at(p), blurred_tone(p, size));
+        let t = data_tone(data_at(p), blurred_tone(p));
         // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
         ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
         ink = max(ink, silhouette_ink(p, t, size));

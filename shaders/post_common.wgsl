@@ -66,3 +66,23 @@ fn light_from_normal(encoded: vec3<f32>) -> vec2<f32> {
     let ndl = dot(encoded / max(ka, 1e-6), post.light.xyz);
     return vec2<f32>(post.light.w * ka + (1.0 - post.light.w) * max(ndl, 0.0), ndl);
 }
+
+// One axis of the separable Gaussian blur of the tone image (thesis Fig. 6.9d): the mean of
+// channel `channel` of `tex` along `axis` within the style's blur radius (post.tone2.y),
+// weighted by exp(−d²/2σ²) with σ = radius / 2. The tone-blur pass (horizontal) and the
+// compose pass (vertical) together give the 2D Gaussian with a tenth of the texel reads at
+// radius 4.
+fn gaussian_tone(tex: texture_2d<f32>, channel: u32, p: vec2<i32>, axis: vec2<i32>) -> f32 {
+    let size = textureDimensions(tex);
+    let radius = i32(post.tone2.y);
+    let sigma = max(post.tone2.y * 0.5, 0.5);
+    let k = -0.5 / (sigma * sigma);
+    var sum = 0.0;
+    var weight = 0.0;
+    for (var d = -radius; d <= radius; d++) {
+        let w = exp(f32(d * d) * k);
+        sum += w * textureLoad(tex, clamp_coord(p + axis * d, size), 0)[channel];
+        weight += w;
+    }
+    return sum / weight;
+}

@@ -2,7 +2,8 @@
 //!
 //! Each pass reads the post uniform block (binding 0) and its inputs (bindings 1..) and writes
 //! one render target: [`prefilter`] (thesis eq. 5.4, optional), [`contour`] (eq. 5.1 and the
-//! tone of 6.1.3) and [`compose`] (eq. 5.2, tone blur, TAM hatching, SAM silhouettes, paper).
+//! tone of 6.1.3), [`tone_blur`] (horizontal) and [`ComposePass`] (eq. 5.2, vertical tone
+//! blur, TAM hatching, SAM silhouettes, paper).
 
 use super::gbuffer::{DEPTH_FORMAT, texture_entry, uniform_layout_entry};
 
@@ -13,6 +14,8 @@ const POST_COMMON: &str = include_str!("../../../shaders/post_common.wgsl");
 pub const PREFILTER_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 /// Output format of the contour pass: grey-level contour intensity (r) and tone (g).
 pub const CONTOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg16Float;
+/// Output format of the tone-blur pass: the horizontally blurred tone.
+pub const TONE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
 /// Output format of the final image (sRGB-encoded values written directly).
 pub const OUTPUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 
@@ -261,7 +264,8 @@ impl ComposePass {
     /// Compiles the four pipelines. Inputs: contour + tone, depth + HLP radius, IDs, hatch
     /// coordinates + E, normal + tiles per pixel, albedo, the array of all TAMs, SAM, TAM
     /// sampler, SAM sampler, data layers ([`super::projection::DATA_FORMAT`]), the
-    /// hatch-colour slots ([`super::projection::ProjectionPass::hatch_colors`]).
+    /// hatch-colour slots ([`super::projection::ProjectionPass::hatch_colors`]), the
+    /// horizontally blurred tone ([`tone_blur`]).
     pub fn new(device: &wgpu::Device) -> ComposePass {
         use Input::*;
         let source = concat!(
@@ -273,7 +277,7 @@ impl ComposePass {
         let layout = input_layout(
             device,
             Self::LABEL,
-            &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform],
+            &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform, Float],
         );
         let pipelines = [0.0, 1.0].map(|hatch_colors| {
             let constants = [("HATCH_COLORS", hatch_colors)];
@@ -333,6 +337,19 @@ pub fn contour(device: &wgpu::Device) -> FullscreenPass {
         "fs_contour",
         &[Input::Float, Input::Float, Input::Float, Input::Uint],
         CONTOUR_FORMAT,
+    )
+}
+
+/// The horizontal half of the tone blur (`shaders/tone_blur.wgsl`, thesis Fig. 6.9d).
+/// Inputs: contour + tone, IDs (the style slot per pixel).
+pub fn tone_blur(device: &wgpu::Device) -> FullscreenPass {
+    FullscreenPass::new(
+        device,
+        "tone blur",
+        include_str!("../../../shaders/tone_blur.wgsl"),
+        "fs_tone_blur",
+        &[Input::Float, Input::Uint],
+        TONE_FORMAT,
     )
 }
 

@@ -4,7 +4,7 @@
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
 use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, LayerUniform, layer_uniforms, render_target};
 use super::parametrization::ReferenceCoords;
-use super::post::{self, CONTOUR_FORMAT, ComposePass, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT};
+use super::post::{self, CONTOUR_FORMAT, ComposePass, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT, TONE_FORMAT};
 use super::profile::{PassTimes, Recorder};
 use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
 use super::scene_gpu::{DrawStats, LayerDraw, SceneGpu};
@@ -25,6 +25,7 @@ pub struct Renderer {
     geometry: GeometryPass,
     prefilter: FullscreenPass,
     contour: FullscreenPass,
+    tone_blur: FullscreenPass,
     compose: ComposePass,
     copy: FullscreenPass,
     projection: ProjectionPass,
@@ -68,6 +69,8 @@ struct FrameTargets {
     gbuffer: GBuffer,
     prefiltered: wgpu::TextureView,
     contours: wgpu::TextureView,
+    /// The horizontally blurred tone.
+    tone: wgpu::TextureView,
     data_layers: wgpu::TextureView,
     output: wgpu::Texture,
     output_view: wgpu::TextureView,
@@ -87,6 +90,7 @@ impl FrameTargets {
             gbuffer: GBuffer::new(device, width, height),
             prefiltered: view(render_target(device, "prefiltered depth", PREFILTER_FORMAT, width, height)),
             contours: view(render_target(device, "contours", CONTOUR_FORMAT, width, height)),
+            tone: view(render_target(device, "tone", TONE_FORMAT, width, height)),
             data_layers: view(render_target(device, "data layers", DATA_FORMAT, width, height)),
             output_view: output.create_view(&Default::default()),
             output,
@@ -146,6 +150,7 @@ impl Renderer {
             layer_names: scene.layers.iter().map(|l| l.name.clone()).collect(),
             prefilter: post::prefilter(&gpu.device),
             contour: post::contour(&gpu.device),
+            tone_blur: post::tone_blur(&gpu.device),
             compose: ComposePass::new(&gpu.device),
             copy: post::copy(&gpu.device),
             projection: ProjectionPass::new(&gpu, scene),
@@ -393,6 +398,7 @@ impl Renderer {
             super::gbuffer::DEPTH_FORMAT,
             PREFILTER_FORMAT,
             CONTOUR_FORMAT,
+            TONE_FORMAT,
             DATA_FORMAT,
             OUTPUT_FORMAT,
         ];
@@ -467,7 +473,7 @@ impl Renderer {
         let started = std::time::Instant::now();
         let mut cache = self.targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let targets = FrameTargets::get(&mut cache, device, width, height);
-        let FrameTargets { gbuffer, prefiltered, contours, data_layers, output, output_view, .. } = targets;
+        let FrameTargets { gbuffer, prefiltered, contours, tone, data_layers, output, output_view, .. } = targets;
 
         // One post uniform block per silhouette-art-map group, each with the styles of all
         // slots; the compose pass runs once per group (thesis 8.2.8, see `art_groups`).
@@ -496,6 +502,7 @@ impl Renderer {
             post_buffer,
             &[view(depth_for_contours), view(&gbuffer.albedo), view(&gbuffer.normal), view(&gbuffer.id)],
         );
+        let tone_inputs = self.tone_blur.bind_group(device, post_buffer, &[view(contours), view(&gbuffer.id)]);
         let compose_inputs: Vec<wgpu::BindGroup> = sams
             .iter()
             .zip(&post_buffers)
@@ -516,6 +523,7 @@ impl Renderer {
                         wgpu::BindingResource::Sampler(&self.art.sam_sampler),
                         view(data_layers),
                         self.projection.hatch_colors().as_entire_binding(),
+                        view(tone),
                     ],
                 )
             })
@@ -560,6 +568,8 @@ impl Renderer {
         }
         self.contour.encode(recorder.encoder(), contours, &contour_inputs);
         recorder.mark("contour")?;
+        self.tone_blur.encode(recorder.encoder(), tone, &tone_inputs);
+        recorder.mark("tone_blur")?;
         self.projection.encode(&self.gpu, recorder.encoder(), data_layers, &data_inputs, data)?;
         recorder.mark("data")?;
         for (group, inputs) in compose_inputs.iter().enumerate() {
