@@ -31,13 +31,20 @@ struct Frame {
 
 struct Material {
     base_color: vec4<f32>,
-    // x: alpha cutoff (< 0: opaque; α_max for foliage), y: part kind (0 terrain, 1 wood,
-    // 2 foliage, 3 billboard), z: α_min of the leaf shape map (thesis 4.1; the cutoff for other
-    // kinds), w: scale of leaf particles drawn as a share of the leaves (SPEC P4)
+    // x: alpha cutoff (< 0: opaque; α_max for foliage), y: unused, z: α_min of the leaf shape
+    // map (thesis 4.1; the cutoff for other kinds), w: scale of leaf particles drawn as a share
+    // of the leaves (SPEC P4)
     params: vec4<f32>,
     // average colour of the textured material, linear RGB (abstract colour, thesis 6.2)
     average_color: vec4<f32>,
 };
+
+// The kind of surface a pipeline draws (`render::gbuffer::Surface`): 0 terrain, 1 wood,
+// 2 foliage, 3 billboard. One pipeline per kind, so each shader holds only its kind's code:
+// lavapipe runs both sides of every branch for every fragment.
+override SURFACE: u32 = 0u;
+// Whether the pipeline draws leaf particles (`vs_leaf`), which may be elliptical.
+override LEAF_PARTICLES: bool = false;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Reference texture coordinates R_uv of every (instance, HLP) pair (thesis eq. 6.2).
@@ -150,7 +157,7 @@ fn view_depth(world: vec3<f32>) -> f32 {
 @vertex
 fn vs_main(in: VertexIn) -> VertexOut {
     // Leaves only: billboards (kind 3) already stand for their HLP sphere.
-    let abstraction = select(0.0, plant_abstraction(in.lod_mask), u32(material.params.y) == 2u);
+    let abstraction = select(0.0, plant_abstraction(in.lod_mask), SURFACE == 2u);
     return vertex_out(in, hlp_blend(in.position, in.hlp, abstraction));
 }
 
@@ -164,10 +171,9 @@ fn vertex_out(in: VertexIn, p: vec3<f32>) -> VertexOut {
     out.implicit = rotate_z(in.implicit, in.rotation);
     out.uv = in.uv;
     out.view_depth = view_depth(world);
-    let kind = u32(material.params.y);
     let has_hlp = in.hlp.w > 0.0;
     let patch_id = select(0u, in.hlp_index + 1u, has_hlp);
-    out.ids = vec2<u32>(in.object_id, (kind << 24u) | patch_id);
+    out.ids = vec2<u32>(in.object_id, (SURFACE << 24u) | patch_id);
     let center = to_world(in.hlp.xyz, in);
     out.hlp_normal = world - center;
     // Thesis 7.3: far plants take their hatching and silhouette parametrization from a shared
@@ -338,10 +344,10 @@ fn billboard_normal(frag: vec2<f32>, in: VertexOut) -> vec3<f32> {
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let frag = in.clip;
     let texel = textureSample(base_tex, base_sampler, in.uv) * material.base_color;
-    let has_hlp = in.hlp_depth_radius.y > 0.0;
+    let has_hlp = SURFACE >= 2u && in.hlp_depth_radius.y > 0.0;
     // Terrain is hatched in image space: seen from walking height a planar object-space mapping
     // is magnified far beyond the TAM's finest level in the foreground.
-    let image_space = layer.hlp.y > 0.5 || u32(material.params.y) == 0u;
+    let image_space = SURFACE == 0u || layer.hlp.y > 0.5;
     let t = select(select(in.object_uv, hybrid_uv(frag.xy, in), has_hlp), frag.xy / layer.hatch.w, image_space);
     // Area-based footprint: the geometric mean of the two axes, so grazing terrain keeps
     // crisp (foreshortened) strokes instead of the blur of the coarsest axis.
@@ -351,16 +357,17 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // texel lies inside the shape: α − α_t, or 1 − (s² + t²) on an elliptical leaf (the
     // ellipse equation in the particle's coordinates).
     let alpha_t = mix(material.params.x, material.params.z, layer.leaf.z);
-    let elliptical = in.leaf.z > 0.5;
+    let elliptical = LEAF_PARTICLES && in.leaf.z > 0.5;
     let inside = select(texel.a - alpha_t, 1.0 - dot(in.leaf.xy, in.leaf.xy), elliptical);
     if material.params.x >= 0.0 && inside < 0.0 {
         discard;
     }
     // Thesis eq. 4.1: leaf texels with α − α_t ≤ Δα are the leaf's outline, drawn in ink by
     // the compose pass (albedo alpha OUTLINE_ALPHA instead of 1).
-    let outline = u32(material.params.y) == 2u && layer.leaf.w > 0.0 && inside <= layer.leaf.w;
+    let outline = SURFACE == 2u && layer.leaf.w > 0.0 && inside <= layer.leaf.w;
+    // Terrain has no levels of detail to blend.
     let dither = screen_door(frag.xy);
-    if dither < in.lod_mask.x || dither >= in.lod_mask.y {
+    if SURFACE != 0u && (dither < in.lod_mask.x || dither >= in.lod_mask.y) {
         discard;
     }
     var n = normalize(in.normal);
@@ -373,7 +380,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // (the paper's encoding) for the post passes' ambient term.
     let ka = length(in.implicit);
     var ambient_k = 1.0;
-    if ka > 1e-4 {
+    if SURFACE >= 2u && ka > 1e-4 {
         let blended = mix(n, in.implicit / ka, layer.implicit.x);
         n = select(in.implicit / ka, normalize(blended), length(blended) > 1e-4);
         ambient_k = max(mix(1.0, ka, layer.implicit.y), 1e-3);
@@ -382,7 +389,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     var radius_px = 0.0;
     if has_hlp {
         var nh = normalize(in.hlp_normal);
-        if u32(material.params.y) == 3u {
+        if SURFACE == 3u {
             nh = billboard_normal(frag.xy, in);
             n = nh;
         }

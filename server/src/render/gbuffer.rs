@@ -167,13 +167,30 @@ impl FrameUniform {
     }
 }
 
+/// What a surface is, as the G-buffer pass distinguishes it (`SURFACE` in
+/// `shaders/gbuffer.wgsl`): each kind is drawn by its own pipeline, whose shader holds only that
+/// kind's code (lavapipe runs both sides of every branch for every fragment).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Surface {
+    Terrain = 0,
+    Wood = 1,
+    Foliage = 2,
+    /// A billboard of an HLP or a whole plant: shaded as its HLP sphere.
+    Billboard = 3,
+}
+
+impl Surface {
+    /// Every kind, in the order of their codes.
+    pub const ALL: [Surface; 4] = [Surface::Terrain, Surface::Wood, Surface::Foliage, Surface::Billboard];
+}
+
 /// Per-material uniforms (`Material` in `shaders/gbuffer.wgsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct MaterialUniform {
     pub base_color: [f32; 4],
-    /// x: alpha cutoff (negative: opaque; for foliage α_max of thesis 4.1), y: part kind (0
-    /// terrain, 1 wood, 2 foliage, 3 billboard), z: α_min, the alpha threshold of the most
+    /// x: alpha cutoff (negative: opaque; for foliage α_max of thesis 4.1), y: unused (the
+    /// pipeline's [`Surface`] tells the kind), z: α_min, the alpha threshold of the most
     /// abstract leaf shape (foliage; the cutoff elsewhere), w: scale of leaf particles drawn
     /// as a share of the leaves (√(all / drawn), SPEC P4; 1 elsewhere).
     pub params: [f32; 4],
@@ -304,10 +321,11 @@ pub struct Instance {
     pub reference_sphere: [f32; 4],
 }
 
-/// The geometry pass pipeline and the bind group layouts meshes and frames are bound with.
+/// The geometry pass pipelines and the bind group layouts meshes and frames are bound with.
 pub struct GeometryPass {
-    pub pipeline: wgpu::RenderPipeline,
-    /// The pipeline drawing leaf particles (`vs_leaf`, SPEC R1, R2).
+    /// One pipeline per [`Surface`] for meshes (`vs_main`), in the order of [`Surface::ALL`].
+    pipelines: [wgpu::RenderPipeline; 4],
+    /// The pipeline drawing leaf particles (`vs_leaf`, SPEC R1, R2; foliage).
     pub leaf_pipeline: wgpu::RenderPipeline,
     pub frame_layout: wgpu::BindGroupLayout,
     pub material_layout: wgpu::BindGroupLayout,
@@ -411,16 +429,22 @@ impl GeometryPass {
         let vertex_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x4, 4 => Uint32, 13 => Float32x3];
         let instance_attrs = wgpu::vertex_attr_array![5 => Float32x4, 6 => Float32x2, 7 => Uint32, 8 => Uint32, 9 => Float32x4, 15 => Float32x4];
         let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
-        // Both pipelines share the instances, the fragment shader and the targets; they differ
-        // in their vertices: mesh vertices (`vs_main`) or leaf-particle corners (`vs_leaf`).
-        let pipeline_with = |label, entry_point, vertices: wgpu::VertexBufferLayout<'_>| {
+        // The pipelines share the instances, the fragment shader and the targets; they differ
+        // in their vertices, mesh vertices (`vs_main`) or leaf-particle corners (`vs_leaf`),
+        // and in the kind of surface their shader is compiled for.
+        let pipeline_with = |label, entry_point, vertices: wgpu::VertexBufferLayout<'_>, surface: Surface| {
+            let constants =
+                [("SURFACE", surface as u32 as f64), ("LEAF_PARTICLES", f64::from(u8::from(entry_point == "vs_leaf")))];
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&layout),
                 vertex: wgpu::VertexState {
                     module: &shader,
                     entry_point: Some(entry_point),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
                     buffers: &[
                         Some(vertices),
                         Some(wgpu::VertexBufferLayout {
@@ -442,7 +466,10 @@ impl GeometryPass {
                 fragment: Some(wgpu::FragmentState {
                     module: &shader,
                     entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
                     targets: &[
                         target(ALBEDO_FORMAT),
                         target(NORMAL_FORMAT),
@@ -455,15 +482,18 @@ impl GeometryPass {
                 cache: None,
             })
         };
-        let pipeline = pipeline_with(
-            "gbuffer",
-            "vs_main",
-            wgpu::VertexBufferLayout {
-                array_stride: std::mem::size_of::<Vertex>() as u64,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &vertex_attrs,
-            },
-        );
+        let pipelines = Surface::ALL.map(|surface| {
+            pipeline_with(
+                "gbuffer",
+                "vs_main",
+                wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &vertex_attrs,
+                },
+                surface,
+            )
+        });
         let leaf_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x2, 2 => Float32x3, 3 => Float32x3,
             4 => Float32x3, 10 => Float32x2, 11 => Float32x4, 12 => Uint32, 13 => Float32, 14 => Float32x3];
         let leaf_pipeline = pipeline_with(
@@ -474,6 +504,7 @@ impl GeometryPass {
                 step_mode: wgpu::VertexStepMode::Vertex,
                 attributes: &leaf_attrs,
             },
+            Surface::Foliage,
         );
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("material"),
@@ -484,7 +515,12 @@ impl GeometryPass {
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
-        GeometryPass { pipeline, leaf_pipeline, frame_layout, material_layout, sampler }
+        GeometryPass { pipelines, leaf_pipeline, frame_layout, material_layout, sampler }
+    }
+
+    /// The pipeline drawing meshes of `surface`.
+    pub fn pipeline(&self, surface: Surface) -> &wgpu::RenderPipeline {
+        &self.pipelines[surface as usize]
     }
 
     /// Clears the G-buffer and draws every batch of `scene` into it.
@@ -523,7 +559,6 @@ impl GeometryPass {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.pipeline);
-        scene.draw(&mut pass, visible, frame, &self.leaf_pipeline);
+        scene.draw(&mut pass, visible, frame, self);
     }
 }

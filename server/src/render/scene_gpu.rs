@@ -5,7 +5,7 @@
 
 use super::bake::{BakeDraw, BakeTile, Baker};
 use super::gbuffer::{
-    GeometryPass, Instance, LAYER_STRIDE, LeafVertex, MaterialUniform, NO_HLP, TERRAIN_LAYER_CODE, Vertex,
+    GeometryPass, Instance, LAYER_STRIDE, LeafVertex, MaterialUniform, NO_HLP, Surface, TERRAIN_LAYER_CODE, Vertex,
     average_color, object_id,
 };
 use super::parametrization::RefKey;
@@ -51,17 +51,8 @@ struct GpuMesh {
     indices: wgpu::Buffer,
     index_count: u32,
     material: wgpu::BindGroup,
-}
-
-/// What a surface is, as the G-buffer pass distinguishes it (`Material.params.y` in
-/// `shaders/gbuffer.wgsl`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Surface {
-    Terrain = 0,
-    Wood = 1,
-    Foliage = 2,
-    /// A billboard of an HLP or a whole plant: shaded as its HLP sphere.
-    Billboard = 3,
+    /// Which of the geometry pass's pipelines draws the mesh.
+    surface: Surface,
 }
 
 impl From<PartKind> for Surface {
@@ -307,7 +298,7 @@ impl Uploader<'_> {
             .collect();
         let (vertices, indices) = self.buffers(bytemuck::cast_slice(&vertices), &mesh.indices);
         let material = self.material(material, surface, 1.0);
-        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material }
+        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material, surface }
     }
 
     /// Uploads a vertex and an index buffer.
@@ -374,7 +365,7 @@ impl Uploader<'_> {
         let texture = shapes.map(|(map, _)| map).or_else(|| material.texture.clone());
         let uniform = MaterialUniform {
             base_color: material.base_color,
-            params: [cutoff, surface as u32 as f32, alpha_min, particle_scale],
+            params: [cutoff, 0.0, alpha_min, particle_scale],
             average_color: average_color(material),
         };
         let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -865,20 +856,22 @@ impl SceneGpu {
         buffer.clone()
     }
 
-    /// Records the draws of the terrain and every visible instance run; plants drawn with leaf
-    /// particles last, their leaves with `leaf_pipeline`. Each draw binds `frame` (group 0) at
-    /// the layer-style offset of its style slot.
+    /// Records the draws of the terrain and every visible instance run, each mesh with the
+    /// `geometry` pipeline of its surface; plants drawn with leaf particles last, their leaves
+    /// with the leaf pipeline. Each draw binds `frame` (group 0) at the layer-style offset of
+    /// its style slot.
     pub fn draw(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
         visible: &VisibleSet,
         frame: &wgpu::BindGroup,
-        leaf_pipeline: &wgpu::RenderPipeline,
+        geometry: &GeometryPass,
     ) {
         let bytes = std::mem::size_of_val(visible.instances.as_slice()) as u64;
         let layer_offset = |slot: usize| [(slot as u64 * LAYER_STRIDE) as u32];
         pass.set_vertex_buffer(1, self.instance_buffer.slice(..bytes));
         pass.set_bind_group(0, frame, &layer_offset(style_slot(object_id(TERRAIN_LAYER_CODE, 0))));
+        pass.set_pipeline(geometry.pipeline(Surface::Terrain));
         pass.set_bind_group(1, &self.terrain.material, &[]);
         pass.set_vertex_buffer(0, self.terrain.vertices.slice(..));
         pass.set_index_buffer(self.terrain.indices.slice(..), wgpu::IndexFormat::Uint32);
@@ -886,6 +879,7 @@ impl SceneGpu {
             pass.draw_indexed(range.clone(), 0, 0..1);
         }
         let draw = |pass: &mut wgpu::RenderPass<'_>, mesh: &GpuMesh, instances: Range<u32>| {
+            pass.set_pipeline(geometry.pipeline(mesh.surface));
             pass.set_bind_group(1, &mesh.material, &[]);
             pass.set_vertex_buffer(0, mesh.vertices.slice(..));
             pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
@@ -907,7 +901,7 @@ impl SceneGpu {
         if visible.particle_batches.is_empty() {
             return;
         }
-        pass.set_pipeline(leaf_pipeline);
+        pass.set_pipeline(&geometry.leaf_pipeline);
         for (species, share, slot, instances) in &visible.particle_batches {
             pass.set_bind_group(0, frame, &layer_offset(*slot));
             for leaves in &self.species[*species].particles.leaves {
