@@ -43,7 +43,10 @@ fn contour_ink(p: vec2<i32>, size: vec2<u32>) -> f32 {
 // The tone blurred by the style's Gaussian (thesis Fig. 6.9d): the vertical half over the
 // horizontally blurred tone of the tone-blur pass.
 fn blurred_tone(p: vec2<i32>) -> f32 {
-    return gaussian_tone(tone_tex, 0u, p, vec2<i32>(0, 1));
+    // The style's radius, not the frame's BLUR_RADIUS: lavapipe 22.3 miscompiled this shader
+    // with the loop unrolled (leaf-free ground at tone 1 came out hatched), and the unrolled
+    // loop saved nothing here.
+    return gaussian_tone(tone_tex, 0u, p, vec2<i32>(0, 1), i32(post.tone2.y));
 }
 
 // The TAM mip level at pixel p: it follows the texture's tiles per pixel so strokes keep their
@@ -232,14 +235,12 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     return finish(p, mix(post.paper.rgb, encode_srgb(surface_color(p)), post.color.x), ink);
 }
 
-// The background's pixels: paper or sky, and contours that the depth pre-filter moved onto
-// them.
+// The background's pixels: paper or sky (no contours: they lie on the nearer surface).
 @fragment
 fn fs_sky(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(frag.xy);
     if !style_of_group(p) {
         discard;
     }
-    let size = textureDimensions(contour_tex);
-    return finish(p, mix(post.paper.rgb, sky_color(frag.xy, size), post.color2.y), contour_part(p, size));
+    return finish(p, mix(post.paper.rgb, sky_color(frag.xy, textureDimensions(contour_tex)), post.color2.y), 0.0);
 }

@@ -16,10 +16,6 @@ struct HatchColors {
     slots: array<HatchColor, 3>,
 };
 
-// Whether the frame has hatch-colour mappings: the compose pipeline without them leaves their
-// code out (lavapipe would run it for every pixel, branch or not).
-override HATCH_COLORS: bool = true;
-
 @group(0) @binding(11) var data_tex: texture_2d<u32>;
 @group(0) @binding(12) var<uniform> hatch_colors: HatchColors;
 

@@ -39,6 +39,17 @@ struct Styles {
 
 @group(0) @binding(0) var<uniform> styles: Styles;
 
+// Frame-wide specialisation (`render::post::Specialization`), set per pipeline: lavapipe runs
+// every instruction of a shader for every pixel whichever way its branches go, so a frame that
+// needs less gets pipelines compiled without the rest.
+// Every slot holds the same style: slot 0 serves all pixels, no per-pixel lookup.
+override UNIFORM_STYLE: bool = false;
+// The tone blur radius of every slot (−1: each pixel's style's), so the tone-blur pass's loop
+// unrolls.
+override BLUR_RADIUS: i32 = -1;
+// Whether the frame has hatch-colour mappings of data layers (compose).
+override HATCH_COLORS: bool = true;
+
 // The style of the pixel being shaded; set by each fragment entry point with `use_style`.
 var<private> post: Post;
 
@@ -50,7 +61,7 @@ fn style_slot(object_id: u32) -> u32 {
 }
 
 fn use_style(object_id: u32) {
-    post = styles.slots[style_slot(object_id)];
+    post = styles.slots[select(style_slot(object_id), 0u, UNIFORM_STYLE)];
 }
 
 fn clamp_coord(p: vec2<i32>, size: vec2<u32>) -> vec2<i32> {
@@ -68,14 +79,12 @@ fn light_from_normal(encoded: vec3<f32>) -> vec2<f32> {
 }
 
 // One axis of the separable Gaussian blur of the tone image (thesis Fig. 6.9d): the mean of
-// channel `channel` of `tex` along `axis` within the style's blur radius (post.tone2.y),
-// weighted by exp(−d²/2σ²) with σ = radius / 2. The tone-blur pass (horizontal) and the
-// compose pass (vertical) together give the 2D Gaussian with a tenth of the texel reads at
-// radius 4.
-fn gaussian_tone(tex: texture_2d<f32>, channel: u32, p: vec2<i32>, axis: vec2<i32>) -> f32 {
+// channel `channel` of `tex` along `axis` within `radius` (the style's blur radius), weighted
+// by exp(−d²/2σ²) with σ = radius / 2. The tone-blur pass (horizontal) and the compose pass
+// (vertical) together give the 2D Gaussian with a tenth of the texel reads at radius 4.
+fn gaussian_tone(tex: texture_2d<f32>, channel: u32, p: vec2<i32>, axis: vec2<i32>, radius: i32) -> f32 {
     let size = textureDimensions(tex);
-    let radius = i32(post.tone2.y);
-    let sigma = max(post.tone2.y * 0.5, 0.5);
+    let sigma = max(f32(radius) * 0.5, 0.5);
     let k = -0.5 / (sigma * sigma);
     var sum = 0.0;
     var weight = 0.0;

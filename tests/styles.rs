@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{assert_matches_reference, full_detail, gpu, luminance, trees_on_a_plain};
+use common::{assert_matches_reference, fraction, full_detail, gpu, luminance, trees_on_a_plain};
 use landsketch::render::presets::PRESETS;
 use landsketch::render::style::{FrameStyle, TERRAIN_LAYER};
 use landsketch::render::{RenderError, Renderer, Style};
@@ -278,6 +278,25 @@ fn a_hidden_layer_draws_no_plants() {
     let without_plants = bare.render(&camera, Style::default(), 160, 120).unwrap();
     assert_eq!(renderer.render(&camera, &hidden, 160, 120).unwrap(), without_plants);
     assert_ne!(renderer.render(&camera, Style::default(), 160, 120).unwrap(), without_plants);
+}
+
+/// Frames whose slots all share one style are drawn with post-pass pipelines specialised for
+/// it (`render::post::Specialization`); a style difference no pixel shows (the sky colours of
+/// the terrain layer, whose pixels never show the sky) forces the general shaders, which look
+/// each pixel's style up. Both must draw the same image.
+#[test]
+fn specialised_pipelines_draw_what_the_general_ones_draw() {
+    let scene = trees_on_a_plain(&[[-5.0, 5.0], [4.0, 10.0]]);
+    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    let camera = scene.default_camera;
+    for preset in PRESETS.iter().filter(|p| ["full_npr", "photorealism"].contains(&p.name)) {
+        let base = preset.style().unwrap();
+        let terrain = Style { sky_zenith: [1.0, 0.0, 0.0], sky_horizon: [0.0, 1.0, 0.0], ..base.clone() };
+        let general = FrameStyle { base: base.clone(), layers: [(TERRAIN_LAYER.to_owned(), terrain)].into() };
+        let specialised = renderer.render(&camera, &base, 160, 120).unwrap();
+        assert_eq!(specialised, renderer.render(&camera, &general, 160, 120).unwrap(), "{}", preset.name);
+        assert!(fraction(&specialised, |l| l < 0.5) > 0.01, "{} draws ink", preset.name);
+    }
 }
 
 /// Mean luminance of the `mask` pixels of `image`.

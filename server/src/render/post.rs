@@ -6,6 +6,9 @@
 //! blur, TAM hatching, SAM silhouettes, paper).
 
 use super::gbuffer::{DEPTH_FORMAT, texture_entry, uniform_layout_entry};
+use super::style::PostParams;
+use std::collections::HashMap;
+use std::sync::Mutex;
 
 const FULLSCREEN: &str = include_str!("../../../shaders/fullscreen.wgsl");
 const POST_COMMON: &str = include_str!("../../../shaders/post_common.wgsl");
@@ -62,11 +65,126 @@ impl Input {
     }
 }
 
-/// A full-screen pass: one fragment shader over the whole image.
-pub struct FullscreenPass {
+/// Frame-wide facts the post passes' shaders are specialised on (the override constants of
+/// `shaders/post_common.wgsl`). On lavapipe every instruction of a shader runs for every pixel,
+/// whichever way its branches go, so a frame that needs less gets pipelines compiled without
+/// the rest; [`Specialization::default`] is the general shader.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct Specialization {
+    /// Every style slot holds the same post style: no per-pixel style lookup.
+    pub uniform_style: bool,
+    /// The tone blur radius when every slot has the same one (the blur loops unroll).
+    pub blur_radius: Option<u32>,
+    /// Whether the frame has coloured hatchings of data layers (compose).
+    pub hatch_colors: bool,
+}
+
+impl Specialization {
+    /// The specialisation of a frame whose style slots have the post parameters `slots`.
+    pub fn for_frame(slots: &[PostParams], hatch_colors: bool) -> Specialization {
+        let first = slots.first();
+        let all_equal = |f: &dyn Fn(&PostParams) -> Vec<u8>| slots.iter().all(|s| first.map(f) == Some(f(s)));
+        let uniform_style = all_equal(&|s| bytemuck::bytes_of(s).to_vec());
+        let blur_radius =
+            if all_equal(&|s| s.tone_blur().to_le_bytes().to_vec()) { first.map(PostParams::tone_blur) } else { None };
+        Specialization { uniform_style, blur_radius, hatch_colors }
+    }
+
+    fn constants(self) -> [(&'static str, f64); 3] {
+        [
+            ("UNIFORM_STYLE", f64::from(u8::from(self.uniform_style))),
+            ("BLUR_RADIUS", self.blur_radius.map_or(-1.0, f64::from)),
+            ("HATCH_COLORS", f64::from(u8::from(self.hatch_colors))),
+        ]
+    }
+}
+
+/// The pipelines of one post shader, compiled on first use for each entry point, depth gate and
+/// specialisation a frame asks for (a handful in practice).
+struct Variants {
     label: &'static str,
-    pipeline: wgpu::RenderPipeline,
+    shader: wgpu::ShaderModule,
     layout: wgpu::BindGroupLayout,
+    output: wgpu::TextureFormat,
+    cache: Mutex<HashMap<(&'static str, Gate, Specialization), wgpu::RenderPipeline>>,
+}
+
+impl Variants {
+    fn new(
+        device: &wgpu::Device,
+        label: &'static str,
+        source: &str,
+        inputs: &[Input],
+        output: wgpu::TextureFormat,
+    ) -> Variants {
+        Variants {
+            label,
+            shader: shader_module(device, label, source),
+            layout: input_layout(device, label, inputs),
+            output,
+            cache: Mutex::default(),
+        }
+    }
+
+    fn get(
+        &self,
+        device: &wgpu::Device,
+        entry_point: &'static str,
+        gate: Gate,
+        spec: Specialization,
+    ) -> wgpu::RenderPipeline {
+        let mut cache = self.cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        cache
+            .entry((entry_point, gate, spec))
+            .or_insert_with(|| {
+                let constants = spec.constants();
+                fullscreen_pipeline(
+                    device,
+                    self.label,
+                    &self.shader,
+                    &self.layout,
+                    (entry_point, &constants),
+                    self.output,
+                    gate,
+                )
+            })
+            .clone()
+    }
+
+    fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        uniform: &wgpu::Buffer,
+        inputs: &[wgpu::BindingResource<'_>],
+    ) -> wgpu::BindGroup {
+        input_bind_group(device, self.label, &self.layout, uniform, inputs)
+    }
+}
+
+/// What the post passes of one frame are drawn with: the specialisation of their shaders and
+/// the G-buffer depth that gated passes test against.
+#[derive(Clone, Copy)]
+pub struct FrameContext<'a> {
+    pub device: &'a wgpu::Device,
+    pub spec: Specialization,
+    /// The G-buffer depth (needed by gated passes only).
+    pub depth: Option<&'a wgpu::TextureView>,
+}
+
+impl<'a> FrameContext<'a> {
+    /// The context of a pass that neither depends on styles nor is gated.
+    pub fn plain(device: &'a wgpu::Device) -> FrameContext<'a> {
+        FrameContext { device, spec: Specialization::default(), depth: None }
+    }
+}
+
+/// A full-screen pass: one fragment shader over the whole image, or over the part of it its
+/// [`Gate`] lets through (the rest keeps the pass's clear colour).
+pub struct FullscreenPass {
+    variants: Variants,
+    entry_point: &'static str,
+    gate: Gate,
+    clear: wgpu::Color,
 }
 
 /// Compiles a post pass's WGSL source, prefixed with the shared vertex stage and uniform block.
@@ -89,7 +207,7 @@ fn input_layout(device: &wgpu::Device, label: &'static str, inputs: &[Input]) ->
 /// 0 where nothing was drawn). The depth test is the one way to skip pixels on lavapipe: a
 /// branch in a shader runs both sides for every pixel, the early depth test leaves out whole
 /// groups of 8 pixels.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Gate {
     /// Every pixel (no depth attachment).
     None,
@@ -221,14 +339,17 @@ impl FullscreenPass {
         device: &wgpu::Device,
         label: &'static str,
         source: &str,
-        entry_point: &str,
+        entry_point: &'static str,
         inputs: &[Input],
         output: wgpu::TextureFormat,
     ) -> FullscreenPass {
-        let shader = shader_module(device, label, source);
-        let layout = input_layout(device, label, inputs);
-        let pipeline = fullscreen_pipeline(device, label, &shader, &layout, (entry_point, &[]), output, Gate::None);
-        FullscreenPass { label, pipeline, layout }
+        let variants = Variants::new(device, label, source, inputs, output);
+        FullscreenPass { variants, entry_point, gate: Gate::None, clear: wgpu::Color::TRANSPARENT }
+    }
+
+    /// The pass limited to the pixels `gate` lets through; the others are cleared to `clear`.
+    pub(crate) fn gated(self, gate: Gate, clear: wgpu::Color) -> FullscreenPass {
+        FullscreenPass { gate, clear, ..self }
     }
 
     /// Binds the uniform buffer and the inputs in binding order.
@@ -238,30 +359,33 @@ impl FullscreenPass {
         uniform: &wgpu::Buffer,
         inputs: &[wgpu::BindingResource<'_>],
     ) -> wgpu::BindGroup {
-        input_bind_group(device, self.label, &self.layout, uniform, inputs)
+        self.variants.bind_group(device, uniform, inputs)
     }
 
-    /// Records the pass: every pixel of `target` is written.
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::TextureView, bind_group: &wgpu::BindGroup) {
-        let clear = wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT);
-        record_fullscreen(encoder, self.label, (target, clear), None, bind_group, &[&self.pipeline]);
+    /// Records the pass over `target` with the pipeline for the frame's specialisation.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        bind_group: &wgpu::BindGroup,
+        frame: FrameContext<'_>,
+    ) {
+        let pipeline = self.variants.get(frame.device, self.entry_point, self.gate, frame.spec);
+        let depth = if self.gate == Gate::None { None } else { frame.depth };
+        let target = (target, wgpu::LoadOp::Clear(self.clear));
+        record_fullscreen(encoder, self.variants.label, target, depth, bind_group, &[&pipeline]);
     }
 }
 
 /// The compose pass (`shaders/compose.wgsl` with `shaders/data_common.wgsl`): the background
 /// (`fs_sky`) and the geometry (`fs_compose`) are drawn by separate pipelines gated by the
-/// G-buffer depth ([`Gate`]), each compiled with and without the coloured hatchings of data
-/// layers (the `HATCH_COLORS` override), so no pixel runs code it does not need.
+/// G-buffer depth ([`Gate`]), so no pixel runs the other's code.
 pub struct ComposePass {
-    layout: wgpu::BindGroupLayout,
-    /// `[sky, geometry]` without the hatch-colour slots, then with them.
-    pipelines: [[wgpu::RenderPipeline; 2]; 2],
+    variants: Variants,
 }
 
 impl ComposePass {
-    const LABEL: &'static str = "compose";
-
-    /// Compiles the four pipelines. Inputs: contour + tone, depth + HLP radius, IDs, hatch
+    /// Compiles the shader. Inputs: contour + tone, depth + HLP radius, IDs, hatch
     /// coordinates + E, normal + tiles per pixel, albedo, the array of all TAMs, SAM, TAM
     /// sampler, SAM sampler, data layers ([`super::projection::DATA_FORMAT`]), the
     /// hatch-colour slots ([`super::projection::ProjectionPass::hatch_colors`]), the
@@ -273,19 +397,9 @@ impl ComposePass {
             "\n",
             include_str!("../../../shaders/compose.wgsl")
         );
-        let shader = shader_module(device, Self::LABEL, source);
-        let layout = input_layout(
-            device,
-            Self::LABEL,
-            &[Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform, Float],
-        );
-        let pipelines = [0.0, 1.0].map(|hatch_colors| {
-            let constants = [("HATCH_COLORS", hatch_colors)];
-            [("fs_sky", Gate::Background), ("fs_compose", Gate::Geometry)].map(|(entry, gate)| {
-                fullscreen_pipeline(device, Self::LABEL, &shader, &layout, (entry, &constants), OUTPUT_FORMAT, gate)
-            })
-        });
-        ComposePass { layout, pipelines }
+        let inputs =
+            [Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform, Float];
+        ComposePass { variants: Variants::new(device, "compose", source, &inputs, OUTPUT_FORMAT) }
     }
 
     /// Binds the uniform buffer and the inputs in binding order.
@@ -295,23 +409,23 @@ impl ComposePass {
         uniform: &wgpu::Buffer,
         inputs: &[wgpu::BindingResource<'_>],
     ) -> wgpu::BindGroup {
-        input_bind_group(device, Self::LABEL, &self.layout, uniform, inputs)
+        self.variants.bind_group(device, uniform, inputs)
     }
 
-    /// Records the pass of one art-map group into `target`, gated by the G-buffer `depth`:
-    /// the first group clears the target, further groups draw over it (their shaders discard
-    /// the pixels of other groups). `hatch_colors`: whether the frame has coloured hatchings.
+    /// Records the pass of one art-map group into `target`: the first group clears the
+    /// target, further groups draw over it (their shaders discard the pixels of other groups).
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        (target, depth): (&wgpu::TextureView, &wgpu::TextureView),
+        target: &wgpu::TextureView,
         bind_group: &wgpu::BindGroup,
         first: bool,
-        hatch_colors: bool,
+        frame: FrameContext<'_>,
     ) {
         let load = if first { wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT) } else { wgpu::LoadOp::Load };
-        let [sky, geometry] = &self.pipelines[usize::from(hatch_colors)];
-        record_fullscreen(encoder, Self::LABEL, (target, load), Some(depth), bind_group, &[sky, geometry]);
+        let sky = self.variants.get(frame.device, "fs_sky", Gate::Background, frame.spec);
+        let geometry = self.variants.get(frame.device, "fs_compose", Gate::Geometry, frame.spec);
+        record_fullscreen(encoder, "compose", (target, load), frame.depth, bind_group, &[&sky, &geometry]);
     }
 }
 
@@ -329,6 +443,8 @@ pub fn prefilter(device: &wgpu::Device) -> FullscreenPass {
 
 /// The contour and tone pass (`shaders/contour.wgsl`, thesis eq. 5.1, 6.7).
 /// Inputs: linear depth (raw or pre-filtered), albedo, normal, IDs (the style slot per pixel).
+/// Only pixels with geometry: the background carries no contour and white tone (contours lie
+/// on the nearer surface, eq. 5.1).
 pub fn contour(device: &wgpu::Device) -> FullscreenPass {
     FullscreenPass::new(
         device,
@@ -338,6 +454,7 @@ pub fn contour(device: &wgpu::Device) -> FullscreenPass {
         &[Input::Float, Input::Float, Input::Float, Input::Uint],
         CONTOUR_FORMAT,
     )
+    .gated(Gate::Geometry, wgpu::Color { r: 0.0, g: 1.0, b: 0.0, a: 1.0 })
 }
 
 /// The horizontal half of the tone blur (`shaders/tone_blur.wgsl`, thesis Fig. 6.9d).
@@ -364,4 +481,33 @@ pub fn copy(device: &wgpu::Device) -> FullscreenPass {
         &[Input::Float],
         OUTPUT_FORMAT,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::Style;
+
+    fn params(style: &Style) -> PostParams {
+        PostParams::new(style, glam::Vec3::Z, 0.0, 6, 256, 0)
+    }
+
+    #[test]
+    fn frames_are_specialised_only_on_what_all_slots_share() {
+        let base = Style::default();
+        let one = Specialization::for_frame(&[params(&base); 4], false);
+        assert_eq!(one, Specialization { uniform_style: true, blur_radius: Some(base.tone_blur), hatch_colors: false });
+
+        // Another hatch strength in one slot: styles differ, the blur radius is still shared.
+        let strokes = Style { hatch_strength: 0.3, ..base.clone() };
+        let mixed = Specialization::for_frame(&[params(&base), params(&strokes)], true);
+        assert_eq!(
+            mixed,
+            Specialization { uniform_style: false, blur_radius: Some(base.tone_blur), hatch_colors: true }
+        );
+
+        let blurred = Style { tone_blur: base.tone_blur + 1, ..base.clone() };
+        let radii = Specialization::for_frame(&[params(&base), params(&blurred)], false);
+        assert_eq!(radii, Specialization { uniform_style: false, blur_radius: None, hatch_colors: false });
+    }
 }

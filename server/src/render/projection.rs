@@ -448,7 +448,7 @@ impl ProjectionPass {
             }
         }
         let bind_group = self.pass.bind_group(&gpu.device, inputs.post, &resources);
-        self.pass.encode(encoder, target, &bind_group);
+        self.pass.encode(encoder, target, &bind_group, super::post::FrameContext::plain(&gpu.device));
         Ok(())
     }
 }

@@ -4,7 +4,10 @@
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
 use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, LayerUniform, layer_uniforms, render_target};
 use super::parametrization::ReferenceCoords;
-use super::post::{self, CONTOUR_FORMAT, ComposePass, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT, TONE_FORMAT};
+use super::post::{
+    self, CONTOUR_FORMAT, ComposePass, FrameContext, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT, Specialization,
+    TONE_FORMAT,
+};
 use super::profile::{PassTimes, Recorder};
 use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
 use super::scene_gpu::{DrawStats, LayerDraw, SceneGpu};
@@ -376,7 +379,7 @@ impl Renderer {
                 .map(|_| {
                     let mut times = PassTimes::new();
                     let mut recorder = Recorder::new(&self.gpu, Some(&mut times));
-                    self.copy.encode(recorder.encoder(), &target, &inputs);
+                    self.copy.encode(recorder.encoder(), &target, &inputs, FrameContext::plain(device));
                     recorder.mark("copy")?;
                     recorder.submit();
                     Ok(times[0].1)
@@ -483,6 +486,12 @@ impl Renderer {
             let tam = &self.art.tams[slots[i].hatch_map];
             PostParams::new(&slots[i], self.sun, camera.roll.to_radians(), tam.levels, tam.size, slot_groups[i])
         });
+        // Pipelines specialised for what this frame's styles and data need.
+        let context = FrameContext {
+            device,
+            spec: Specialization::for_frame(&params, data.has_hatch_colors()),
+            depth: Some(&gbuffer.depth),
+        };
         let post_buffers: Vec<wgpu::Buffer> = (0..sams.len())
             .map(|group| {
                 let uniform = PostUniform::new(params, camera, width, height, group as u32);
@@ -563,18 +572,17 @@ impl Renderer {
         self.geometry.encode(recorder.encoder(), gbuffer, &frame, &self.scene, &visible);
         recorder.mark("geometry")?;
         if style.contour_prefilter {
-            self.prefilter.encode(recorder.encoder(), prefiltered, &prefilter_inputs);
+            self.prefilter.encode(recorder.encoder(), prefiltered, &prefilter_inputs, context);
             recorder.mark("prefilter")?;
         }
-        self.contour.encode(recorder.encoder(), contours, &contour_inputs);
+        self.contour.encode(recorder.encoder(), contours, &contour_inputs, context);
         recorder.mark("contour")?;
-        self.tone_blur.encode(recorder.encoder(), tone, &tone_inputs);
+        self.tone_blur.encode(recorder.encoder(), tone, &tone_inputs, context);
         recorder.mark("tone_blur")?;
         self.projection.encode(&self.gpu, recorder.encoder(), data_layers, &data_inputs, data)?;
         recorder.mark("data")?;
         for (group, inputs) in compose_inputs.iter().enumerate() {
-            let targets = (output_view, &gbuffer.depth);
-            self.compose.encode(recorder.encoder(), targets, inputs, group == 0, data.has_hatch_colors());
+            self.compose.encode(recorder.encoder(), output_view, inputs, group == 0, context);
         }
         recorder.mark("compose")?;
         let mut timer = recorder.submit();

@@ -515,6 +515,11 @@ pub struct PostParams {
 }
 
 impl PostParams {
+    /// The tone blur radius in pixels.
+    pub fn tone_blur(&self) -> u32 {
+        self.tone2[1] as u32
+    }
+
     /// Packs a resolved `style` for the GPU; `sun` is the unit vector towards the sun in world
     /// space, `roll` the camera roll in radians (the orientation vector V_O of thesis 5.2
     /// follows it), `tam_levels` and `tam_size` describe the style's tonal art map and
