@@ -1,7 +1,7 @@
 // Data layers (thesis 9.3) as the compose pass reads them: one Rgba32Uint texel per pixel
-// written by the projection pass (`shaders/data.wgsl`, `render::projection`), or cleared to
-// "no data" (white tint, no tone weight, the style's TAM, silhouettes kept, no coloured
-// hatching); and the hatch-colour slots (binding 12), which `ProjectionPass::encode` writes.
+// written by the projection pass (`shaders/data.wgsl`, `render::projection`), or "no data"
+// (white tint, no tone weight, the style's TAM, silhouettes kept, no coloured hatching) when
+// the pass did not run; and the hatch-colour slots (binding 12), which `ProjectionPass::encode` writes.
 
 // Thesis 9.2.2, Fig. 9.3: one hatch-colour slot (the mapping at that position of the view).
 struct HatchColor {
@@ -20,6 +20,10 @@ struct HatchColors {
 @group(0) @binding(12) var<uniform> hatch_colors: HatchColors;
 
 fn data_at(p: vec2<i32>) -> vec4<u32> {
+    if !DATA_LAYERS {
+        // "No data" as the projection pass would clear to, with the style's TAM.
+        return vec4<u32>(0xffffffffu, 0u, u32(post.color2.z), 1u);
+    }
     return textureLoad(data_tex, p, 0);
 }
 

@@ -49,6 +49,8 @@ override UNIFORM_STYLE: bool = false;
 override BLUR_RADIUS: i32 = -1;
 // Whether the frame has hatch-colour mappings of data layers (compose).
 override HATCH_COLORS: bool = true;
+// Whether the projection pass wrote data layers (compose reads none without).
+override DATA_LAYERS: bool = true;
 
 // The style of the pixel being shaded; set by each fragment entry point with `use_style`.
 var<private> post: Post;

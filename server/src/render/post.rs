@@ -77,24 +77,29 @@ pub struct Specialization {
     pub blur_radius: Option<u32>,
     /// Whether the frame has coloured hatchings of data layers (compose).
     pub hatch_colors: bool,
+    /// Whether the projection pass writes data layers; without, compose reads none.
+    pub data_layers: bool,
 }
 
 impl Specialization {
-    /// The specialisation of a frame whose style slots have the post parameters `slots`.
-    pub fn for_frame(slots: &[PostParams], hatch_colors: bool) -> Specialization {
+    /// The specialisation of a frame whose style slots have the post parameters `slots`,
+    /// with or without coloured hatchings and data layers.
+    pub fn for_frame(slots: &[PostParams], hatch_colors: bool, data_layers: bool) -> Specialization {
         let first = slots.first();
         let all_equal = |f: &dyn Fn(&PostParams) -> Vec<u8>| slots.iter().all(|s| first.map(f) == Some(f(s)));
         let uniform_style = all_equal(&|s| bytemuck::bytes_of(s).to_vec());
         let blur_radius =
             if all_equal(&|s| s.tone_blur().to_le_bytes().to_vec()) { first.map(PostParams::tone_blur) } else { None };
-        Specialization { uniform_style, blur_radius, hatch_colors }
+        Specialization { uniform_style, blur_radius, hatch_colors, data_layers }
     }
 
-    fn constants(self) -> [(&'static str, f64); 3] {
+    fn constants(self) -> [(&'static str, f64); 4] {
+        let flag = |b: bool| f64::from(u8::from(b));
         [
-            ("UNIFORM_STYLE", f64::from(u8::from(self.uniform_style))),
+            ("UNIFORM_STYLE", flag(self.uniform_style)),
             ("BLUR_RADIUS", self.blur_radius.map_or(-1.0, f64::from)),
-            ("HATCH_COLORS", f64::from(u8::from(self.hatch_colors))),
+            ("HATCH_COLORS", flag(self.hatch_colors)),
+            ("DATA_LAYERS", flag(self.data_layers)),
         ]
     }
 }
@@ -495,19 +500,18 @@ mod tests {
     #[test]
     fn frames_are_specialised_only_on_what_all_slots_share() {
         let base = Style::default();
-        let one = Specialization::for_frame(&[params(&base); 4], false);
-        assert_eq!(one, Specialization { uniform_style: true, blur_radius: Some(base.tone_blur), hatch_colors: false });
+        let one = Specialization::for_frame(&[params(&base); 4], false, false);
+        let uniform = Specialization { uniform_style: true, blur_radius: Some(base.tone_blur), ..Default::default() };
+        assert_eq!(one, uniform);
 
         // Another hatch strength in one slot: styles differ, the blur radius is still shared.
         let strokes = Style { hatch_strength: 0.3, ..base.clone() };
-        let mixed = Specialization::for_frame(&[params(&base), params(&strokes)], true);
-        assert_eq!(
-            mixed,
-            Specialization { uniform_style: false, blur_radius: Some(base.tone_blur), hatch_colors: true }
-        );
+        let mixed = Specialization::for_frame(&[params(&base), params(&strokes)], true, true);
+        let expected = Specialization { uniform_style: false, hatch_colors: true, data_layers: true, ..uniform };
+        assert_eq!(mixed, expected);
 
         let blurred = Style { tone_blur: base.tone_blur + 1, ..base.clone() };
-        let radii = Specialization::for_frame(&[params(&base), params(&blurred)], false);
-        assert_eq!(radii, Specialization { uniform_style: false, blur_radius: None, hatch_colors: false });
+        let radii = Specialization::for_frame(&[params(&base), params(&blurred)], false, false);
+        assert_eq!(radii, Specialization::default());
     }
 }

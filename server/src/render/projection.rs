@@ -367,9 +367,16 @@ impl ProjectionPass {
         Ok(texture)
     }
 
-    /// Records the pass into `encoder`, writing `target`: the projected `data`, or (without
-    /// mappings) a plain clear to "no data" with the style's TAM. Writes the hatch-colour
-    /// slots of `data` into [`ProjectionPass::hatch_colors`].
+    /// Whether the pass writes anything for `data` in a frame whose style layers do or do not
+    /// use TAMs of their own (`layer_tams`); when it does not, the compose pass reads no data
+    /// layers (`Specialization::data_layers`).
+    pub fn writes(data: &DataView, layer_tams: bool) -> bool {
+        !data.mappings.is_empty() || layer_tams
+    }
+
+    /// Records the pass into `encoder`, writing `target` with the projected `data` and the
+    /// hatch-colour slots of `data` into [`ProjectionPass::hatch_colors`]; records nothing when
+    /// it [`writes`](ProjectionPass::writes) nothing.
     pub fn encode(
         &self,
         gpu: &Gpu,
@@ -378,21 +385,7 @@ impl ProjectionPass {
         inputs: &DataInputs<'_>,
         data: &DataView,
     ) -> Result<(), RenderError> {
-        if data.mappings.is_empty() && !inputs.layer_tams {
-            let clear = wgpu::Color { r: f64::from(u32::MAX), g: 0.0, b: inputs.tams.0 as f64, a: 1.0 };
-            encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("data clear"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+        if !Self::writes(data, inputs.layer_tams) {
             return Ok(());
         }
         Self::check(data)?;

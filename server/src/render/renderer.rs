@@ -486,10 +486,11 @@ impl Renderer {
             let tam = &self.art.tams[slots[i].hatch_map];
             PostParams::new(&slots[i], self.sun, camera.roll.to_radians(), tam.levels, tam.size, slot_groups[i])
         });
+        let layer_tams = slots.iter().any(|s| s.hatch_map != style.hatch_map);
         // Pipelines specialised for what this frame's styles and data need.
         let context = FrameContext {
             device,
-            spec: Specialization::for_frame(&params, data.has_hatch_colors()),
+            spec: Specialization::for_frame(&params, data.has_hatch_colors(), ProjectionPass::writes(data, layer_tams)),
             depth: Some(&gbuffer.depth),
         };
         let post_buffers: Vec<wgpu::Buffer> = (0..sams.len())
@@ -542,7 +543,7 @@ impl Renderer {
             width,
             height,
             tams: (style.hatch_map, self.art.tams.len()),
-            layer_tams: slots.iter().any(|s| s.hatch_map != style.hatch_map),
+            layer_tams,
             post: post_buffer,
             depth: &gbuffer.linear_depth,
             ids: &gbuffer.id,
