@@ -124,17 +124,17 @@ fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
 // The SAM channel (style variant) follows the tone: darker regions get heavier strokes.
 fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     let e = textureLoad(hatch_tex, p, 0).zw;
-    let support = i32(post.silhouette.x);
-    if support == 0 || post.silhouette.z <= 0.0 || dot(e, e) < 0.25 {
+    // −1 where there is nothing to search: the loop below runs to the style's support (not a
+    // constant bound, which the compiler would unroll into the full 17 steps for every pixel).
+    let searching = post.silhouette.x >= 1.0 && post.silhouette.z > 0.0 && dot(e, e) >= 0.25;
+    let support = select(-1, min(i32(post.silhouette.x), MAX_SUPPORT), searching);
+    if support < 0 {
         return 0.0;
     }
     let ids = textureLoad(id_tex, p, 0).xy;
     let step = vec2<f32>(e.x, -e.y);
     var v = -1;
-    for (var k = 0; k <= MAX_SUPPORT; k++) {
-        if k > support {
-            break;
-        }
+    for (var k = 0; k <= support; k++) {
         let q = clamp_coord(p + vec2<i32>(round(step * f32(k))), size);
         if textureLoad(contour_tex, q, 0).r > post.contour.z && all(textureLoad(id_tex, q, 0).xy == ids) {
             v = k;
@@ -232,7 +232,11 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
         ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
         ink = max(ink, silhouette_ink(p, t, size));
     }
-    return finish(p, mix(post.paper.rgb, encode_srgb(surface_color(p)), post.color.x), ink);
+    var base = post.paper.rgb;
+    if SURFACE_COLOR {
+        base = mix(base, encode_srgb(surface_color(p)), post.color.x);
+    }
+    return finish(p, base, ink);
 }
 
 // The background's pixels: paper or sky (no contours: they lie on the nearer surface).

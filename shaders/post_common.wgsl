@@ -51,6 +51,8 @@ override BLUR_RADIUS: i32 = -1;
 override HATCH_COLORS: bool = true;
 // Whether the projection pass wrote data layers (compose reads none without).
 override DATA_LAYERS: bool = true;
+// Whether any slot shows surface colour (compose shades none without).
+override SURFACE_COLOR: bool = true;
 
 // The style of the pixel being shaded; set by each fragment entry point with `use_style`.
 var<private> post: Post;

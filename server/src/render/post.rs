@@ -79,6 +79,8 @@ pub struct Specialization {
     pub hatch_colors: bool,
     /// Whether the projection pass writes data layers; without, compose reads none.
     pub data_layers: bool,
+    /// Whether any slot shows surface colour; without, compose shades none.
+    pub surface_color: bool,
 }
 
 impl Specialization {
@@ -90,16 +92,18 @@ impl Specialization {
         let uniform_style = all_equal(&|s| bytemuck::bytes_of(s).to_vec());
         let blur_radius =
             if all_equal(&|s| s.tone_blur().to_le_bytes().to_vec()) { first.map(PostParams::tone_blur) } else { None };
-        Specialization { uniform_style, blur_radius, hatch_colors, data_layers }
+        let surface_color = slots.iter().any(|s| s.color_amount() > 0.0);
+        Specialization { uniform_style, blur_radius, hatch_colors, data_layers, surface_color }
     }
 
-    fn constants(self) -> [(&'static str, f64); 4] {
+    fn constants(self) -> [(&'static str, f64); 5] {
         let flag = |b: bool| f64::from(u8::from(b));
         [
             ("UNIFORM_STYLE", flag(self.uniform_style)),
             ("BLUR_RADIUS", self.blur_radius.map_or(-1.0, f64::from)),
             ("HATCH_COLORS", flag(self.hatch_colors)),
             ("DATA_LAYERS", flag(self.data_layers)),
+            ("SURFACE_COLOR", flag(self.surface_color)),
         ]
     }
 }
@@ -501,7 +505,12 @@ mod tests {
     fn frames_are_specialised_only_on_what_all_slots_share() {
         let base = Style::default();
         let one = Specialization::for_frame(&[params(&base); 4], false, false);
-        let uniform = Specialization { uniform_style: true, blur_radius: Some(base.tone_blur), ..Default::default() };
+        let uniform = Specialization {
+            uniform_style: true,
+            blur_radius: Some(base.tone_blur),
+            surface_color: base.color > 0.0,
+            ..Default::default()
+        };
         assert_eq!(one, uniform);
 
         // Another hatch strength in one slot: styles differ, the blur radius is still shared.
@@ -512,6 +521,10 @@ mod tests {
 
         let blurred = Style { tone_blur: base.tone_blur + 1, ..base.clone() };
         let radii = Specialization::for_frame(&[params(&base), params(&blurred)], false, false);
-        assert_eq!(radii, Specialization::default());
+        assert_eq!(radii, Specialization { surface_color: base.color > 0.0, ..Default::default() });
+
+        let colour = Style { color: 0.5, ..base.clone() };
+        let coloured = Specialization::for_frame(&[params(&base), params(&colour)], false, false);
+        assert!(coloured.surface_color);
     }
 }

@@ -520,6 +520,11 @@ impl PostParams {
         self.tone2[1] as u32
     }
 
+    /// How much surface colour shows (0: paper and ink only).
+    pub fn color_amount(&self) -> f32 {
+        self.color[0]
+    }
+
     /// Packs a resolved `style` for the GPU; `sun` is the unit vector towards the sun in world
     /// space, `roll` the camera roll in radians (the orientation vector V_O of thesis 5.2
     /// follows it), `tam_levels` and `tam_size` describe the style's tonal art map and
