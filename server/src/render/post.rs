@@ -68,12 +68,14 @@ impl Input {
 /// Frame-wide facts the post passes' shaders are specialised on (the override constants of
 /// `shaders/post_common.wgsl`). On lavapipe every instruction of a shader runs for every pixel,
 /// whichever way its branches go, so a frame that needs less gets pipelines compiled without
-/// the rest; [`Specialization::default`] is the general shader.
+/// the rest. [`Specialization::default`] leaves out coloured hatchings, data layers and surface
+/// colour: the passes that use no styles or data are compiled with it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Specialization {
     /// Every style slot holds the same post style: no per-pixel style lookup.
     pub uniform_style: bool,
-    /// The tone blur radius when every slot has the same one (the blur loops unroll).
+    /// The tone blur radius when every slot has the same one (the tone-blur pass's loop
+    /// unrolls).
     pub blur_radius: Option<u32>,
     /// Whether the frame has coloured hatchings of data layers (compose).
     pub hatch_colors: bool,
@@ -87,11 +89,9 @@ impl Specialization {
     /// The specialisation of a frame whose style slots have the post parameters `slots`,
     /// with or without coloured hatchings and data layers.
     pub fn for_frame(slots: &[PostParams], hatch_colors: bool, data_layers: bool) -> Specialization {
-        let first = slots.first();
-        let all_equal = |f: &dyn Fn(&PostParams) -> Vec<u8>| slots.iter().all(|s| first.map(f) == Some(f(s)));
-        let uniform_style = all_equal(&|s| bytemuck::bytes_of(s).to_vec());
-        let blur_radius =
-            if all_equal(&|s| s.tone_blur().to_le_bytes().to_vec()) { first.map(PostParams::tone_blur) } else { None };
+        let uniform_style = slots.windows(2).all(|w| bytemuck::bytes_of(&w[0]) == bytemuck::bytes_of(&w[1]));
+        let shared_blur = slots.windows(2).all(|w| w[0].tone_blur() == w[1].tone_blur());
+        let blur_radius = slots.first().map(PostParams::tone_blur).filter(|_| shared_blur);
         let surface_color = slots.iter().any(|s| s.color_amount() > 0.0);
         Specialization { uniform_style, blur_radius, hatch_colors, data_layers, surface_color }
     }
