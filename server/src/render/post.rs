@@ -110,7 +110,7 @@ impl Specialization {
 
 /// The pipelines of one post shader, compiled on first use for each entry point, depth gate and
 /// specialisation a frame asks for (a handful in practice).
-struct Variants {
+pub(crate) struct Variants {
     label: &'static str,
     shader: wgpu::ShaderModule,
     layout: wgpu::BindGroupLayout,
@@ -159,14 +159,33 @@ impl Variants {
             })
             .clone()
     }
+}
 
+/// A post pass built on one shader's [`Variants`]: binds its uniform block and inputs.
+pub(crate) trait PostPass {
+    fn variants(&self) -> &Variants;
+
+    /// Binds the uniform buffer and the inputs in binding order.
     fn bind_group(
         &self,
         device: &wgpu::Device,
         uniform: &wgpu::Buffer,
         inputs: &[wgpu::BindingResource<'_>],
     ) -> wgpu::BindGroup {
-        input_bind_group(device, self.label, &self.layout, uniform, inputs)
+        let variants = self.variants();
+        input_bind_group(device, variants.label, &variants.layout, uniform, inputs)
+    }
+}
+
+impl PostPass for FullscreenPass {
+    fn variants(&self) -> &Variants {
+        &self.variants
+    }
+}
+
+impl PostPass for ComposePass {
+    fn variants(&self) -> &Variants {
+        &self.variants
     }
 }
 
@@ -361,16 +380,6 @@ impl FullscreenPass {
         FullscreenPass { gate, clear, ..self }
     }
 
-    /// Binds the uniform buffer and the inputs in binding order.
-    pub fn bind_group(
-        &self,
-        device: &wgpu::Device,
-        uniform: &wgpu::Buffer,
-        inputs: &[wgpu::BindingResource<'_>],
-    ) -> wgpu::BindGroup {
-        self.variants.bind_group(device, uniform, inputs)
-    }
-
     /// Records the pass over `target` with the pipeline for the frame's specialisation.
     pub fn encode(
         &self,
@@ -409,16 +418,6 @@ impl ComposePass {
         let inputs =
             [Float, Float, Uint, Float, Float, Float, FilteredArray, Filtered, Sampler, Sampler, Uint, Uniform, Float];
         ComposePass { variants: Variants::new(device, "compose", source, &inputs, OUTPUT_FORMAT) }
-    }
-
-    /// Binds the uniform buffer and the inputs in binding order.
-    pub fn bind_group(
-        &self,
-        device: &wgpu::Device,
-        uniform: &wgpu::Buffer,
-        inputs: &[wgpu::BindingResource<'_>],
-    ) -> wgpu::BindGroup {
-        self.variants.bind_group(device, uniform, inputs)
     }
 
     /// Records the pass of one art-map group into `target`: the first group clears the

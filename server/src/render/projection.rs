@@ -14,7 +14,7 @@
 //! reuse it, so moving the camera or the time between steps costs no upload. Scalars are
 //! sampled bilinearly, labels at the nearest cell (with `textureLoad`).
 
-use super::post::{FullscreenPass, Input};
+use super::post::{FullscreenPass, Input, PostPass};
 use super::{Gpu, RenderError};
 use crate::fields::{Field, FieldGrid, FieldKind, Lut, MAX_MAPPINGS, Mapping, MappingTarget, SceneGeo};
 use crate::scene::Scene;

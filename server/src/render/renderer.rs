@@ -5,8 +5,8 @@ use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
 use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, LayerUniform, layer_uniforms, render_target};
 use super::parametrization::ReferenceCoords;
 use super::post::{
-    self, CONTOUR_FORMAT, ComposePass, FrameContext, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT, Specialization,
-    TONE_FORMAT,
+    self, CONTOUR_FORMAT, ComposePass, FrameContext, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT, PostPass,
+    Specialization, TONE_FORMAT,
 };
 use super::profile::{PassTimes, Recorder};
 use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
