@@ -66,47 +66,35 @@ fn texel(tex: texture_2d<f32>, c: vec2<i32>) -> f32 {
 }
 
 // D1: scalars bilinearly between cell centres; a point with a nodata neighbour of non-zero
-// weight is nodata. Outside the grid there is no data.
+// weight is nodata. Outside the grid there is no data. (These functions select instead of
+// returning early where pixels differ: on lavapipe 22.3 a `return` taken by some pixels of a
+// quad leaked memory on every draw, ~2 MB per frame; see tests/memory.rs.)
 fn bilinear(tex: texture_2d<f32>, uv: vec2<f32>) -> f32 {
-    if any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) {
-        return NODATA;
-    }
     let st = uv * vec2<f32>(textureDimensions(tex)) - 0.5;
     let i = vec2<i32>(floor(st));
     let f = st - floor(st);
     let w = vec4<f32>((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
     let v = vec4<f32>(texel(tex, i), texel(tex, i + vec2<i32>(1, 0)), texel(tex, i + vec2<i32>(0, 1)), texel(tex, i + vec2<i32>(1, 1)));
-    if any((v < vec4<f32>(NO_VALUE)) & (w > vec4<f32>(0.0))) {
-        return NODATA;
-    }
-    return dot(select(v, vec4<f32>(0.0), v < vec4<f32>(NO_VALUE)), w);
+    let outside = any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0));
+    let missing = any((v < vec4<f32>(NO_VALUE)) & (w > vec4<f32>(0.0)));
+    return select(dot(select(v, vec4<f32>(0.0), v < vec4<f32>(NO_VALUE)), w), NODATA, outside || missing);
 }
 
 // D1: labels at the nearest cell, with textureLoad (label indices must never be blended).
 fn nearest(tex: texture_2d<f32>, uv: vec2<f32>) -> f32 {
-    if any(uv < vec2<f32>(0.0)) || any(uv >= vec2<f32>(1.0)) {
-        return NODATA;
-    }
-    return texel(tex, vec2<i32>(floor(uv * vec2<f32>(textureDimensions(tex)))));
+    let outside = any(uv < vec2<f32>(0.0)) || any(uv >= vec2<f32>(1.0));
+    return select(texel(tex, vec2<i32>(floor(uv * vec2<f32>(textureDimensions(tex))))), NODATA, outside);
 }
 
 // The field of a slot at the world point: nearest label of the nearest step, or eq. 9.4
 // S(t) = (1 - u_t) S(t_i) + u_t S(t_i+1) for scalars (nodata where a weighted step is).
 fn field_value(slot: Slot, lower: texture_2d<f32>, upper: texture_2d<f32>, world: vec3<f32>) -> f32 {
     let uv = vec2<f32>(slot.uv.x * world.x + slot.uv.y, slot.uv.z * world.y + slot.uv.w);
-    if slot.params.y > 0.5 {
-        return nearest(lower, uv);
-    }
     let a = bilinear(lower, uv);
     let u = slot.params.z;
-    if u <= 0.0 {
-        return a;
-    }
-    let b = bilinear(upper, uv);
-    if a < NO_VALUE || b < NO_VALUE {
-        return NODATA;
-    }
-    return mix(a, b, u);
+    let b = select(bilinear(upper, uv), a, u <= 0.0);
+    let scalar = select(mix(a, b, u), NODATA, a < NO_VALUE || b < NO_VALUE);
+    return select(scalar, nearest(lower, uv), slot.params.y > 0.5);
 }
 
 // The value as a position 0..1 along the mapping: scalars over the range (reversed if asked),
@@ -148,12 +136,10 @@ struct Features {
     hatch: vec3<f32>,
 };
 
-// Applies the value of slot `index` to the features (Table 9.1 targets).
+// Applies the value of slot `index` to the features (Table 9.1 targets); nodata selects the
+// empty feature 0 (no early return, see `bilinear`).
 fn apply(index: u32, slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: ptr<function, Features>) {
-    if v < NO_VALUE {
-        return;
-    }
-    let feature = u32(slot.params.x);
+    let feature = select(0u, u32(slot.params.x), v >= NO_VALUE);
     let n = normalized(slot, v);
     let label = u32(max(round(v), 0.0));
     switch feature {
@@ -191,13 +177,16 @@ fn fs_data(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<u32> {
     let own_tam = u32(styles.slots[style_slot(textureLoad(id_tex, p, 0).x)].color2.z);
     var f = Features(vec3<f32>(1.0), vec2<f32>(0.0), own_tam, 0u, 1u, vec3<f32>(0.0));
     let depth = textureLoad(depth_tex, p, 0).r;
-    if depth < BACKGROUND {
-        let world = world_position(frag.xy, depth);
-        let object = textureLoad(id_tex, p, 0).x;
-        apply(0u, data.slots[0], lut0, field_value(data.slots[0], lower0, upper0, world), object, &f);
-        apply(1u, data.slots[1], lut1, field_value(data.slots[1], lower1, upper1, world), object, &f);
-        apply(2u, data.slots[2], lut2, field_value(data.slots[2], lower2, upper2, world), object, &f);
-    }
+    // The background has no data. Selected, not branched on: see `bilinear`.
+    let ground = depth < BACKGROUND;
+    let world = world_position(frag.xy, select(0.0, depth, ground));
+    let object = textureLoad(id_tex, p, 0).x;
+    let v0 = select(NODATA, field_value(data.slots[0], lower0, upper0, world), ground);
+    let v1 = select(NODATA, field_value(data.slots[1], lower1, upper1, world), ground);
+    let v2 = select(NODATA, field_value(data.slots[2], lower2, upper2, world), ground);
+    apply(0u, data.slots[0], lut0, v0, object, &f);
+    apply(1u, data.slots[1], lut1, v1, object, &f);
+    apply(2u, data.slots[2], lut2, v2, object, &f);
     let w = pack4x8unorm(vec4<f32>(0.0, f.hatch)) | f.keep;
     return vec4<u32>(pack4x8unorm(vec4<f32>(f.tint, 1.0)), pack2x16unorm(f.tone), f.tam | (f.sam << 8u), w);
 }
