@@ -44,7 +44,7 @@ fn rendering_many_frames_does_not_grow_memory() {
     assert!(growth < 60.0, "60 frames grew the resident size by {growth:.0} MiB");
 }
 
-/// A plan view of the plain with a colour mapping of a scalar field, as a public server renders
+/// A plan view of the plain with a scalar field mapped to colour and hatch colour, as a public server renders
 /// without a token: every such frame once kept ~2 MB on lavapipe 22.3 (early returns taken by
 /// some pixels of the projection shader, see `shaders/data.wgsl`).
 #[test]
@@ -76,9 +76,14 @@ fn rendering_many_mapped_frames_does_not_grow_memory() {
     let step = FieldStep { time: None, raster };
     let crs = CrsDefinition::from_epsg(32613).expect("UTM 13N");
     let field = Field::new(FieldKind::Scalar, crs, None, vec![step]).expect("field");
-    let mapping: Mapping = serde_json::from_value(serde_json::json!({"layer": "ramp", "target": "color"})).unwrap();
+    let mapping = |target| -> Mapping {
+        serde_json::from_value(serde_json::json!({"layer": "ramp", "target": target})).expect("mapping")
+    };
     let layer = Arc::new(DataLayer { key: "ramp".into(), field });
-    let data = DataView { mappings: vec![DataMapping { layer, mapping }], time: None };
+    // Colour and coloured hatching: the compose pass draws data layers too.
+    let mappings =
+        ["color", "hatch_color"].map(|target| DataMapping { layer: layer.clone(), mapping: mapping(target) });
+    let data = DataView { mappings: mappings.to_vec(), time: None };
     let frame = |i: usize| {
         let camera = Camera::plan(i as f32 % 7.0, 0.0, 300.0, 200.0);
         renderer.render_with_data(&camera, Style::default(), 64, 64, &data).expect("frame")
