@@ -53,7 +53,7 @@ fn shape_tile(map: &RgbaImage, alpha_t: f32, delta: f32) -> RgbaImage {
 }
 
 fn main() -> anyhow::Result<()> {
-    let out = std::env::args().nth(1).unwrap_or_else(|| "docs/leaf_shapes.png".into());
+    let out = std::env::args().nth(1).unwrap_or_else(|| "docs/src/images/leaf_shapes.png".into());
     let models = [
         load_gltf(Path::new("data/models/quaternius/NormalTree_1_textured.gltf"))?,
         load_gltf(Path::new("data/models/quaternius/PineTree_1_textured.gltf"))?,
