@@ -337,25 +337,96 @@ async fn get_owned(url: String) -> reqwest::Response {
     get(&url).await
 }
 
+/// What the REST render queue promises under a burst far larger than it: no more than
+/// `queue_depth` renders ever wait; a render is refused only while they do, with 503 `busy`
+/// and a Retry-After of the time they take; every accepted render is rendered (a PNG of the
+/// size asked for) and every refusal counted; the server answers `/api/health` during the
+/// burst and renders again after it.
 #[tokio::test]
-async fn a_burst_of_renders_all_succeed_or_get_503() {
-    let server = TestServer::tiny_queue();
+async fn a_burst_of_renders_queues_at_most_queue_depth_and_refuses_the_rest() {
+    const REQUESTS: usize = 200;
+    const QUEUE: usize = 2;
+    // A server of its own, so that its counters and queue hold only this burst.
+    let data = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(data.path(), |c| {
+        c.queue_depth = u32::try_from(QUEUE).expect("small");
+        c.cache_bytes = 0;
+    });
+    let health_url = server.url("/api/health");
+    let health = || async { json_of(get(&health_url).await).await };
+    assert_eq!(health().await["queue_depth"], 0);
+    let rejected_before = metric(&server, "landsketch_render_queue_rejected_total").await;
+    let rendered_before = metric(&server, "landsketch_render_seconds_count").await;
+
     let started = Instant::now();
-    let requests = (0..200).map(|i| get_owned(server.url(&format!("/api/render?yaw={}&width=64&height=48", i * 7))));
-    let responses = futures_util::future::join_all(requests).await;
-    let (mut ok, mut busy) = (0, 0);
+    let requests =
+        (0..REQUESTS).map(|i| get_owned(server.url(&format!("/api/render?yaw={}&width=64&height=48", i * 7))));
+    let mut burst = std::pin::pin!(futures_util::future::join_all(requests));
+    // Meanwhile the server answers /api/health, whose queue depth never exceeds the queue's.
+    let mut depths = Vec::new();
+    let responses = loop {
+        let poll = async {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+            health().await
+        };
+        tokio::select! {
+            responses = &mut burst => break responses,
+            answer = poll => depths.push(answer["queue_depth"].as_u64().expect("queue_depth")),
+        }
+    };
+    let elapsed = started.elapsed().as_secs_f64();
+    assert!(!depths.is_empty(), "no /api/health answer during the burst");
+    assert!(depths.iter().all(|&d| d <= QUEUE as u64), "more than {QUEUE} renders waited: {depths:?}");
+
+    let (mut ok, mut busy, mut slowest_ms, mut retry_afters) = (0, 0, 0, Vec::new());
     for response in responses {
         match response.status().as_u16() {
-            200 => ok += 1,
+            200 => {
+                ok += 1;
+                assert_eq!(response.headers()["content-type"], "image/png");
+                assert_eq!(response.headers()["x-cache"], "miss");
+                let render_ms = response.headers()["x-render-ms"].to_str().expect("ASCII").parse::<u32>();
+                slowest_ms = slowest_ms.max(render_ms.expect("x-render-ms"));
+                let image = image::load_from_memory_with_format(
+                    &response.bytes().await.expect("body"),
+                    image::ImageFormat::Png,
+                )
+                .expect("PNG");
+                assert_eq!((image.width(), image.height()), (64, 48));
+            }
             503 => {
-                assert!(response.headers().contains_key("retry-after"));
                 busy += 1;
+                let retry = response.headers()["retry-after"].to_str().expect("ASCII").parse::<u32>();
+                retry_afters.push(retry.expect("Retry-After in whole seconds"));
+                let body = assert_error(response, 503, "busy", None).await;
+                // Refused only when the queue is full: the message names the renders waiting.
+                let message = body["error"]["message"].as_str().unwrap_or_default();
+                assert!(message.contains(&format!("({QUEUE} renders waiting)")), "{message}");
             }
             other => panic!("unexpected status {other}"),
         }
     }
-    eprintln!("burst of 200: {ok} rendered, {busy} refused in {:.1} s", started.elapsed().as_secs_f64());
-    assert_eq!(ok + busy, 200);
+    eprintln!(
+        "burst of {REQUESTS}: {ok} rendered, {busy} refused in {elapsed:.1} s; {} health answers, deepest queue {}, \
+         slowest render {slowest_ms} ms, longest Retry-After {} s",
+        depths.len(),
+        depths.iter().max().unwrap_or(&0),
+        retry_afters.iter().max().unwrap_or(&0)
+    );
+    // The queue takes `QUEUE` renders before it refuses one, and a burst this size does not fit.
+    assert!(ok >= QUEUE, "only {ok} of {REQUESTS} renders accepted with a queue of {QUEUE}");
+    assert!(busy >= 1, "{REQUESTS} simultaneous renders with a queue of {QUEUE} all fitted");
+    // Retry-After is the time the waiting renders take, in whole seconds, at least 1.
+    let estimate = (QUEUE as u64 * u64::from(slowest_ms + 1)).div_ceil(1000).max(1);
+    assert!(
+        retry_afters.iter().all(|&s| s >= 1 && u64::from(s) <= estimate),
+        "{retry_afters:?}; estimate {estimate} s"
+    );
+    // Every refusal is counted, every accepted render was rendered, and none is left waiting.
+    assert_eq!(metric(&server, "landsketch_render_queue_rejected_total").await - rejected_before, busy as f64);
+    assert_eq!(metric(&server, "landsketch_render_seconds_count").await - rendered_before, ok as f64);
+    assert_eq!(health().await["queue_depth"], 0);
+
     // The server recovers: honouring Retry-After, a render gets through.
     let url = server.url("/api/render?yaw=3&width=64&height=48");
     for attempt in 0.. {

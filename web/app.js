@@ -3,7 +3,7 @@
 
 import { ApiError, deleteLayer, getBlob, getJSON } from './api.js';
 import { ArtMapsPanel } from './artmaps.js';
-import { Connection } from './connection.js';
+import { Connection, statsText } from './connection.js';
 import { DataPanel } from './data-panel.js';
 import { cameraMessage, dataMessage, defaultView, fromQuery, pageLink, renderUrl, styleMessage, toQuery } from './link.js';
 import { Navigator } from './navigation.js';
@@ -108,11 +108,7 @@ function drawFrame({ meta, header, bitmap }) {
 }
 
 function showStats(stats) {
-  const parts = [`${stats.fps.toFixed(1)} fps`];
-  if (stats.latencyMs != null) parts.push(`latency ${Math.round(stats.latencyMs)} ms`);
-  if (stats.rttMs != null) parts.push(`rtt ${Math.round(stats.rttMs)} ms`);
-  if (stats.renderMs != null) parts.push(`render ${stats.renderMs} ms`);
-  $('stats').textContent = parts.join(' · ');
+  $('stats').textContent = statsText(stats);
 }
 
 let countdown = null;

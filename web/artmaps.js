@@ -33,9 +33,49 @@ function reason(error) {
 }
 
 /** `"tam:2"` → `['tam', 2]`. */
-function parseKey(key) {
+export function parseKey(key) {
   const [kind, index] = key.split(':');
   return [kind, Number(index)];
+}
+
+/**
+ * Where pixel (x, y) of a painted `tile` (`{kind, width, height}`) is in the data of a map
+ * `mapWidth` pixels wide: in a TAM (grey, tone levels side by side) the `layer`-th tone
+ * image, in a SAM (RGBA) channel `layer`.
+ */
+export function tileOffset(tile, mapWidth, x, y, layer) {
+  const { kind, width } = tile;
+  return kind === 'tam' ? y * mapWidth + layer * width + x : (y * width + x) * 4 + layer;
+}
+
+/**
+ * A map value with ink of `cover` (0…255) added: a TAM (`kind` `tam`) holds paper (255) and
+ * gets paper × (1 − coverage), a SAM holds ink coverage and gets 1 − (1 − its own)(1 − coverage).
+ */
+export function inked(kind, value, cover) {
+  const paper = kind === 'tam' ? value : 255 - value;
+  const left = Math.round((paper * (255 - cover)) / 255);
+  return kind === 'tam' ? left : 255 - left;
+}
+
+/**
+ * The map `base` (`Pixels`: grey for a TAM, RGBA for a SAM) with strokes of ink coverage
+ * `cover` (0…255 a pixel of `tile`, rows top to bottom) painted into a TAM's tone `layer` and
+ * every darker level (a TAM's nesting), or into a SAM's channel `layer`. `base` is left as it is.
+ */
+export function paintStrokes(base, tile, layer, cover) {
+  const { kind, width, height } = tile;
+  const out = new Pixels(base.width, base.height, base.channels, base.data.slice());
+  const layers = kind === 'tam' ? out.width / width : layer + 1;
+  for (let l = layer; l < layers; l += 1) {
+    for (let y = 0; y < height; y += 1) {
+      for (let x = 0; x < width; x += 1) {
+        const i = tileOffset(tile, out.width, x, y, l);
+        out.data[i] = inked(kind, out.data[i], cover[y * width + x]);
+      }
+    }
+  }
+  return out;
 }
 
 /** Where strokes are painted: a coverage mask over one tone level of a TAM or one channel of a SAM. */
@@ -132,40 +172,19 @@ class Painter {
     return cover;
   }
 
-  /** Where pixel (x, y) of the painted tile is in the map's data: a TAM's `layer`-th tone image or a SAM's channel. */
+  /** Where pixel (x, y) of the painted tile is in the map's data (see `tileOffset`). */
   offset(x, y, layer = this.layer) {
-    const { kind, width } = this.tile;
-    return kind === 'tam' ? y * this.base.width + layer * width + x : (y * width + x) * 4 + layer;
+    return tileOffset(this.tile, this.base.width, x, y, layer);
   }
 
-  /**
-   * A map value with ink of `cover` (0…255) added: a TAM holds paper (255) and gets
-   * paper × (1 − coverage), a SAM holds ink coverage and gets 1 − (1 − its own)(1 − coverage).
-   */
+  /** A map value with ink of `cover` (0…255) added (see `inked`). */
   inked(value, cover) {
-    const paper = this.tile.kind === 'tam' ? value : 255 - value;
-    const left = Math.round((paper * (255 - cover)) / 255);
-    return this.tile.kind === 'tam' ? left : 255 - left;
+    return inked(this.tile.kind, value, cover);
   }
 
-  /**
-   * The map with the strokes: into a TAM's tone `layer` and every darker level (a TAM's
-   * nesting), or into a SAM's channel `layer`.
-   */
+  /** The map with the strokes (see `paintStrokes`). */
   result() {
-    const cover = this.coverage();
-    const { kind, width, height } = this.tile;
-    const out = new Pixels(this.base.width, this.base.height, this.base.channels, this.base.data.slice());
-    const layers = kind === 'tam' ? out.width / width : this.layer + 1;
-    for (let layer = this.layer; layer < layers; layer += 1) {
-      for (let y = 0; y < height; y += 1) {
-        for (let x = 0; x < width; x += 1) {
-          const i = this.offset(x, y, layer);
-          out.data[i] = this.inked(out.data[i], cover[y * width + x]);
-        }
-      }
-    }
-    return out;
+    return paintStrokes(this.base, this.tile, this.layer, this.coverage());
   }
 
   /** Shows the painted tone level (or the SAM channel as ink on paper) with the strokes. */

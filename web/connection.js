@@ -40,6 +40,15 @@ export function backoffDelay(attempt, random = Math.random) {
   return Math.round(base * (0.75 + 0.5 * random()));
 }
 
+/** The readout of a session's `stats`: `12.0 fps · latency 85 ms · rtt 3 ms · render 40 ms`, figures not known yet left out. */
+export function statsText(stats) {
+  const parts = [`${stats.fps.toFixed(1)} fps`];
+  if (stats.latencyMs != null) parts.push(`latency ${Math.round(stats.latencyMs)} ms`);
+  if (stats.rttMs != null) parts.push(`rtt ${Math.round(stats.rttMs)} ms`);
+  if (stats.renderMs != null) parts.push(`render ${stats.renderMs} ms`);
+  return parts.join(' · ');
+}
+
 /**
  * A session that reconnects by itself. Events: `status` (detail: `{state, delayMs?, attempt?}`
  * with state `connecting`, `open`, `waiting`), `hello`, `frame` (detail: `{meta, header,

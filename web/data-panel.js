@@ -34,7 +34,7 @@ export function timeAt(times, position) {
 }
 
 /** The slider position of `iso` over `times` (ms): the nearest sub-step. */
-function positionOf(times, iso) {
+export function positionOf(times, iso) {
   const t = Date.parse(iso);
   if (Number.isNaN(t) || times.length < 2) return 0;
   for (let i = 0; i + 1 < times.length; i += 1) {

@@ -6,7 +6,7 @@
 /** Eye height above the terrain when walking (README "Render parameters"). */
 export const DEFAULT_EYE_HEIGHT = 1.7;
 
-/** Decimals kept in links: centimetres and hundredths of a degree. */
+/** Decimals kept in links: millimetres and thousandths of a degree. */
 const DECIMALS = 3;
 
 /**
