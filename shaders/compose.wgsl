@@ -2,24 +2,11 @@
 // map on the hybrid parametrization (thesis 6.1), stylized silhouettes with a silhouette art
 // map (thesis 5.2), composited on paper or, with colour (thesis 6.2, 8.2.6–8.2.7), on the
 // shaded surface colour and the sky. Every pixel uses the style of its layer (thesis 8.2.8); a
-// compose pass draws the style slots of its art-map group (`styles.frame_info.x`) and discards
+// compose pass draws the style slots of its art-map group (`styles.art_group`) and discards
 // the rest. Data layers (thesis 9.3) adjust tone, TAM, SAM channel, silhouettes and colour
-// and add coloured hatchings through `data_common.wgsl` (bindings 11, 12): the surface colour
+// and add coloured hatchings through `data_common.wgsl`: the surface colour
 // or paper, with the style's ink over it, is multiplied by the data's colour tint and by the
 // hatch colours' inks.
-
-@group(0) @binding(1) var contour_tex: texture_2d<f32>;
-@group(0) @binding(2) var depth_tex: texture_2d<f32>;
-@group(0) @binding(3) var id_tex: texture_2d<u32>;
-@group(0) @binding(4) var hatch_tex: texture_2d<f32>;
-@group(0) @binding(5) var normal_tex: texture_2d<f32>;
-@group(0) @binding(6) var albedo_tex: texture_2d<f32>;
-@group(0) @binding(7) var tam: texture_2d_array<f32>;
-@group(0) @binding(8) var sam: texture_2d<f32>;
-@group(0) @binding(9) var tam_sampler: sampler;
-@group(0) @binding(10) var sam_sampler: sampler;
-// Bindings 11, 12: data_common.wgsl.
-@group(0) @binding(13) var tone_tex: texture_2d<f32>;
 
 const MAX_SUPPORT: i32 = 16;
 const LUMA: vec3<f32> = vec3<f32>(0.2126, 0.7152, 0.0722);
@@ -29,13 +16,13 @@ const LUMA: vec3<f32> = vec3<f32>(0.2126, 0.7152, 0.0722);
 // neighbours.
 fn contour_ink(p: vec2<i32>, size: vec2<u32>) -> f32 {
     let p0 = textureLoad(contour_tex, p, 0).r;
-    if post.contour.w < 0.5 || p0 <= 0.0 {
+    if post.isolated_pixel_removal == 0u || p0 <= 0.0 {
         return p0;
     }
     var count = 0.0;
     for (var i = 0; i < 9; i++) {
         let pi = textureLoad(contour_tex, clamp_coord(p + vec2<i32>(i % 3 - 1, i / 3 - 1), size), 0).r;
-        count += ceil(saturate(pi - post.contour.z));
+        count += ceil(saturate(pi - post.isolated_pixel_threshold));
     }
     return p0 * saturate(count - 2.0);
 }
@@ -46,14 +33,14 @@ fn blurred_tone(p: vec2<i32>) -> f32 {
     // The style's radius, not the frame's BLUR_RADIUS: lavapipe 22.3 miscompiled this shader
     // with the loop unrolled (leaf-free ground at tone 1 came out hatched), and the unrolled
     // loop saved nothing here.
-    return gaussian_tone(tone_tex, 0u, p, vec2<i32>(0, 1), i32(post.tone2.y));
+    return gaussian_tone(tone_tex, 0u, p, vec2<i32>(0, 1), i32(post.tone_blur));
 }
 
 // The TAM mip level at pixel p: it follows the texture's tiles per pixel so strokes keep their
 // width on screen.
 fn tam_lod(p: vec2<i32>) -> f32 {
     let tiles_per_px = textureLoad(normal_tex, p, 0).w;
-    return log2(max(tiles_per_px * post.tone2.w, 1e-4));
+    return log2(max(tiles_per_px * post.tam_size, 1e-4));
 }
 
 // Tonal art map lookup (Praun et al., thesis 6.1) at hatch coordinates `coords` in the TAM whose
@@ -62,7 +49,7 @@ fn tam_lod(p: vec2<i32>) -> f32 {
 // `artmaps::tone_target`; below level 0 it fades to paper) and the two are blended. Returns ink
 // coverage 0..1.
 fn tam_ink(coords: vec2<f32>, base: i32, darkness: f32, lod: f32) -> f32 {
-    let levels = i32(post.tone2.z);
+    let levels = i32(post.tam_levels);
     let step = 0.8 / f32(levels - 1);
     let position = select((darkness - 0.1) / step, darkness / 0.1 - 1.0, darkness < 0.1);
     let lo = i32(floor(position));
@@ -78,23 +65,23 @@ fn tam_ink(coords: vec2<f32>, base: i32, darkness: f32, lod: f32) -> f32 {
 // Hatching of tone t (1 = white) with the pixel's TAM (its style's, or a hatch-pattern
 // mapping's), by the hatch strength.
 fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
-    if post.hatch.x <= 0.0 {
+    if post.hatch_strength <= 0.0 {
         return 0.0;
     }
-    let base = data_tam_layer(data_at(p), i32(post.tone2.z));
-    return tam_ink(textureLoad(hatch_tex, p, 0).xy, base, 1.0 - t, tam_lod(p)) * post.hatch.x;
+    let base = data_tam_layer(data_at(p), i32(post.tam_levels));
+    return tam_ink(textureLoad(hatch_tex, p, 0).xy, base, 1.0 - t, tam_lod(p)) * post.hatch_strength;
 }
 
 // The filter of one hatch-colour slot: strokes of the slot's darkness from the TAM at `base`,
 // at the hatch coordinates rotated by the slot's angle, in the slot's ink at its opacity; 1
 // (white) off the strokes.
 fn hatch_color_filter(slot: HatchColor, darkness: f32, coords: vec2<f32>, base: i32, lod: f32) -> vec3<f32> {
-    if darkness <= 0.0 || slot.color.a <= 0.0 {
+    if darkness <= 0.0 || slot.opacity <= 0.0 {
         return vec3<f32>(1.0);
     }
-    let r = slot.rotation.xy;
+    let r = slot.rotation;
     let rotated = vec2<f32>(r.x * coords.x - r.y * coords.y, r.y * coords.x + r.x * coords.y);
-    return mix(vec3<f32>(1.0), slot.color.rgb, tam_ink(rotated, base, darkness, lod) * slot.color.a);
+    return mix(vec3<f32>(1.0), slot.color, tam_ink(rotated, base, darkness, lod) * slot.opacity);
 }
 
 // Thesis 9.2.2, Fig. 9.3: several fields with equal visual importance as hatchings of different
@@ -110,7 +97,7 @@ fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
     }
     let coords = textureLoad(hatch_tex, p, 0).xy;
     let lod = tam_lod(p);
-    let base = i32(post.color2.z) * i32(post.tone2.z);
+    let base = i32(post.hatch_map) * i32(post.tam_levels);
     return rgb * hatch_color_filter(hatch_colors.slots[0], darkness.x, coords, base, lod)
         * hatch_color_filter(hatch_colors.slots[1], darkness.y, coords, base, lod)
         * hatch_color_filter(hatch_colors.slots[2], darkness.z, coords, base, lod);
@@ -126,8 +113,8 @@ fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     let e = textureLoad(hatch_tex, p, 0).zw;
     // −1 where there is nothing to search: the loop below runs to the style's support (not a
     // constant bound, which the compiler would unroll into the full 17 steps for every pixel).
-    let searching = post.silhouette.x >= 1.0 && post.silhouette.z > 0.0 && dot(e, e) >= 0.25;
-    let support = select(-1, min(i32(post.silhouette.x), MAX_SUPPORT), searching);
+    let searching = post.silhouette_support >= 1.0 && post.silhouette_strength > 0.0 && dot(e, e) >= 0.25;
+    let support = select(-1, min(i32(post.silhouette_support), MAX_SUPPORT), searching);
     if support < 0 {
         return 0.0;
     }
@@ -136,7 +123,7 @@ fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     var v = -1;
     for (var k = 0; k <= support; k++) {
         let q = clamp_coord(p + vec2<i32>(round(step * f32(k))), size);
-        if textureLoad(contour_tex, q, 0).r > post.contour.z && all(textureLoad(id_tex, q, 0).xy == ids) {
+        if textureLoad(contour_tex, q, 0).r > post.isolated_pixel_threshold && all(textureLoad(id_tex, q, 0).xy == ids) {
             v = k;
             break;
         }
@@ -144,14 +131,14 @@ fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     if v < 0 {
         return 0.0;
     }
-    let vo = vec2<f32>(-post.hatch.y, -post.hatch.z);
+    let vo = -post.roll;
     let alpha = atan2(vo.x * e.y - vo.y * e.x, dot(vo, e));
     let radius_px = textureLoad(depth_tex, p, 0).g;
-    let u = post.silhouette.y * alpha * radius_px;
+    let u = post.silhouette_stretch * alpha * radius_px;
     let sam_size = vec2<f32>(textureDimensions(sam));
     let texel = textureSampleLevel(sam, sam_sampler, vec2<f32>(u / sam_size.x, (f32(v) + 0.5) / f32(support + 1)), 0.0);
     let channel = data_sam_channel(data_at(p), clamp(i32((1.0 - t) * 4.0), 0, 3));
-    return texel[channel] * post.silhouette.z * data_silhouettes(data_at(p));
+    return texel[channel] * post.silhouette_strength * data_silhouettes(data_at(p));
 }
 
 // Ink of a leaf outline (thesis eq. 4.1): the G-buffer pass marks outline texels of leaves with
@@ -174,16 +161,16 @@ fn encode_srgb(c: vec3<f32>) -> vec3<f32> {
 // shading, k_cool = (0, 0, 0.4) + 0.2·k_d, k_warm = (0.4, 0.4, 0) + 0.6·k_d (Gooch et al. 1998).
 fn surface_color(p: vec2<i32>) -> vec3<f32> {
     let albedo = textureLoad(albedo_tex, p, 0).rgb;
-    let c = max(mix(vec3<f32>(dot(albedo, LUMA)), albedo, post.color.y), vec3<f32>(0.0));
+    let c = max(mix(vec3<f32>(dot(albedo, LUMA)), albedo, post.color_saturation), vec3<f32>(0.0));
     let light = light_from_normal(textureLoad(normal_tex, p, 0).xyz);
     let smooth_light = light.x;
     let ndl = light.y;
-    let bands = post.color2.x;
+    let bands = post.toon_levels;
     let ramp = min(floor(smooth_light * bands), bands - 1.0) / (bands - 1.0);
-    let lit = c * mix(smooth_light, ramp, post.color.w);
+    let lit = c * mix(smooth_light, ramp, post.toon);
     let k = 0.5 * (1.0 + ndl);
     let gooch = mix(vec3<f32>(0.0, 0.0, 0.4) + 0.2 * c, vec3<f32>(0.4, 0.4, 0.0) + 0.6 * c, k);
-    return mix(lit, gooch, post.color.z);
+    return mix(lit, gooch, post.gooch);
 }
 
 // The sky behind the landscape (sRGB): from the horizon colour to the zenith colour with the
@@ -191,21 +178,21 @@ fn surface_color(p: vec2<i32>) -> vec3<f32> {
 fn sky_color(frag: vec2<f32>, size: vec2<u32>) -> vec3<f32> {
     let ndc = vec2<f32>(frag.x / f32(size.x) * 2.0 - 1.0, 1.0 - frag.y / f32(size.y) * 2.0);
     let z = styles.ray.x + ndc.x * styles.ray.y + ndc.y * styles.ray.z;
-    let len = length(vec3<f32>(1.0, ndc.x * styles.ray.w, ndc.y * styles.frame_info.y));
-    return mix(post.sky_horizon.rgb, post.sky_zenith.rgb, sqrt(saturate(z / len)));
+    let len = length(vec3<f32>(1.0, ndc.x * styles.ray.w, ndc.y * styles.tan_half_fov));
+    return mix(post.sky_horizon, post.sky_zenith, sqrt(saturate(z / len)));
 }
 
 // The style of the pixel (thesis 8.2.8), or false where its style slot belongs to another
 // art-map group's compose pass.
 fn style_of_group(p: vec2<i32>) -> bool {
     use_style(textureLoad(id_tex, p, 0).x);
-    return u32(post.silhouette.w) == u32(styles.frame_info.x);
+    return post.art_group == styles.art_group;
 }
 
 // Contour ink by the style's contour strength (thesis eq. 5.1, 5.2).
 fn contour_part(p: vec2<i32>, size: vec2<u32>) -> f32 {
-    if post.tone.w > 0.0 {
-        return contour_ink(p, size) * post.tone.w;
+    if post.contour_strength > 0.0 {
+        return contour_ink(p, size) * post.contour_strength;
     }
     return 0.0;
 }
@@ -213,7 +200,7 @@ fn contour_part(p: vec2<i32>, size: vec2<u32>) -> f32 {
 // The final colour: the base with the ink over it, tinted by the data and with the data's
 // coloured hatchings.
 fn finish(p: vec2<i32>, base: vec3<f32>, ink: f32) -> vec4<f32> {
-    return vec4<f32>(hatch_colors_over(p, data_tint(data_at(p), mix(base, post.ink.rgb, ink))), 1.0);
+    return vec4<f32>(hatch_colors_over(p, data_tint(data_at(p), mix(base, post.ink, ink))), 1.0);
 }
 
 // The geometry's pixels (the pipeline's depth test passes only where the G-buffer pass drew).
@@ -226,15 +213,15 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let size = textureDimensions(contour_tex);
     var ink = max(contour_part(p, size), outline_ink(textureLoad(albedo_tex, p, 0).a));
     // The tone is only needed for strokes (a photorealistic style draws none).
-    if post.hatch.x > 0.0 || post.silhouette.z > 0.0 {
+    if post.hatch_strength > 0.0 || post.silhouette_strength > 0.0 {
         let t = data_tone(data_at(p), blurred_tone(p));
         // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
-        ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch.w)));
+        ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch_brightness)));
         ink = max(ink, silhouette_ink(p, t, size));
     }
-    var base = post.paper.rgb;
+    var base = post.paper;
     if SURFACE_COLOR {
-        base = mix(base, encode_srgb(surface_color(p)), post.color.x);
+        base = mix(base, encode_srgb(surface_color(p)), post.color);
     }
     return finish(p, base, ink);
 }
@@ -246,5 +233,5 @@ fn fs_sky(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     if !style_of_group(p) {
         discard;
     }
-    return finish(p, mix(post.paper.rgb, sky_color(frag.xy, textureDimensions(contour_tex)), post.color2.y), 0.0);
+    return finish(p, mix(post.paper, sky_color(frag.xy, textureDimensions(contour_tex)), post.sky), 0.0);
 }

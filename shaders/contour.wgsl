@@ -1,10 +1,6 @@
 // Post pass 1: image-space contours from linear depth (thesis 5.1) and the tone image
 // (thesis 6.1.3), each pixel with the style of its layer.
 
-@group(0) @binding(1) var depth_tex: texture_2d<f32>;
-@group(0) @binding(2) var albedo_tex: texture_2d<f32>;
-@group(0) @binding(3) var normal_tex: texture_2d<f32>;
-@group(0) @binding(4) var id_tex: texture_2d<u32>;
 
 // Thesis eq. 5.1: p0 = max_i sat((d_i - d0) c - t) over the 3x3 neighbourhood, with signed
 // differences so that contours are one pixel wide and lie on the nearer surface. Depths are
@@ -17,7 +13,7 @@ fn contour(p: vec2<i32>) -> f32 {
     var edge = 0.0;
     for (var i = 0; i < 9; i++) {
         let di = textureLoad(depth_tex, clamp_coord(p + vec2<i32>(i % 3 - 1, i / 3 - 1), size), 0).r;
-        edge = max(edge, saturate((di / d0 - 1.0) * post.contour.x - post.contour.y));
+        edge = max(edge, saturate((di / d0 - 1.0) * post.contour_scale - post.contour_threshold));
     }
     return edge;
 }
@@ -32,10 +28,10 @@ fn tone(p: vec2<i32>) -> f32 {
     }
     let light = light_from_normal(textureLoad(normal_tex, p, 0).xyz).x;
     let lum = sqrt(dot(albedo.rgb, vec3<f32>(0.2126, 0.7152, 0.0722)));
-    let l = light * mix(1.0, lum, post.tone.x);
-    var t = saturate((l - post.tone.z) * post.tone.y + post.tone.z);
-    if post.tone2.x > 0.0 {
-        t = round(t * post.tone2.x) / post.tone2.x;
+    let l = light * mix(1.0, lum, post.albedo_weight);
+    var t = saturate((l - post.tone_reference) * post.tone_contrast + post.tone_reference);
+    if post.tone_levels > 0.0 {
+        t = round(t * post.tone_levels) / post.tone_levels;
     }
     return t;
 }

@@ -1,6 +1,5 @@
 // A plain full-screen copy: the cost floor of a post-processing pass (benchmark only).
 
-@group(0) @binding(1) var source: texture_2d<f32>;
 
 @fragment
 fn fs_copy(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {

@@ -11,39 +11,10 @@
 //      (hatch colour, thesis 9.2.2, Fig. 9.3; 0 = none). The slots' inks and stroke
 //      directions are a uniform of the compose pass (`HatchColors`, `render::projection`).
 
-struct Slot {
-    // u = a·x + b, v = c·y + d: scene metres → field texture (`FieldGrid::uv_transform`)
-    uv: vec4<f32>,
-    // x: target (0 none, 1 colour, 2 hatch tone, 3 hatch pattern, 4 silhouette style,
-    // 5 silhouette density, 6 hatch colour), y: 1 label / 0 scalar, z: u_t of eq. 9.4,
-    // w: opacity
-    params: vec4<f32>,
-    // x, y: values at the two ends of the range (scalars); z: label classes; w: 1 reversed
-    range: vec4<f32>,
-};
-
-struct Data {
-    inv_view_proj: mat4x4<f32>,
-    // the projection's z and w rows at view (0, 0, -d, 1): z_clip = x·d + y, w_clip = z·d + w
-    depth_to_clip: vec4<f32>,
-    // x: image width, y: image height, z: style TAM index, w: number of TAMs
-    info: vec4<f32>,
-    slots: array<Slot, 3>,
-};
-
-@group(0) @binding(1) var<uniform> data: Data;
-@group(0) @binding(2) var depth_tex: texture_2d<f32>;
-@group(0) @binding(3) var id_tex: texture_2d<u32>;
-// per slot: the bracketing time steps t_i and t_i+1 (R32Float grids) and the colour table
-@group(0) @binding(4) var lower0: texture_2d<f32>;
-@group(0) @binding(5) var upper0: texture_2d<f32>;
-@group(0) @binding(6) var lut0: texture_2d<f32>;
-@group(0) @binding(7) var lower1: texture_2d<f32>;
-@group(0) @binding(8) var upper1: texture_2d<f32>;
-@group(0) @binding(9) var lut1: texture_2d<f32>;
-@group(0) @binding(10) var lower2: texture_2d<f32>;
-@group(0) @binding(11) var upper2: texture_2d<f32>;
-@group(0) @binding(12) var lut2: texture_2d<f32>;
+// The block `data` (`render::projection::DataBlock`), its slots (`DataSlot`) and the
+// bindings are declared by the pass's declaration (`render::passes::DATA`): per slot the
+// bracketing time steps t_i and t_i+1 (`lowerN`, `upperN`: R32Float grids) and the colour
+// table (`lutN`).
 
 // Grid cells without data hold this value (NaN is not reliable in shaders).
 const NODATA: f32 = -3.0e38;
@@ -55,7 +26,7 @@ const SAM_CHANNELS: u32 = 4u;
 // the inverse view (one matrix here). The NDC depth of linear depth d comes from the
 // projection's own z and w rows, so perspective and plan views are treated alike.
 fn world_position(frag: vec2<f32>, depth: f32) -> vec3<f32> {
-    let ndc_xy = vec2<f32>(frag.x / data.info.x * 2.0 - 1.0, 1.0 - frag.y / data.info.y * 2.0);
+    let ndc_xy = vec2<f32>(frag.x / data.width * 2.0 - 1.0, 1.0 - frag.y / data.height * 2.0);
     let z = (data.depth_to_clip.x * depth + data.depth_to_clip.y) / (data.depth_to_clip.z * depth + data.depth_to_clip.w);
     let world = data.inv_view_proj * vec4<f32>(ndc_xy, z, 1.0);
     return world.xyz / world.w;
@@ -88,34 +59,34 @@ fn nearest(tex: texture_2d<f32>, uv: vec2<f32>) -> f32 {
 
 // The field of a slot at the world point: nearest label of the nearest step, or eq. 9.4
 // S(t) = (1 - u_t) S(t_i) + u_t S(t_i+1) for scalars (nodata where a weighted step is).
-fn field_value(slot: Slot, lower: texture_2d<f32>, upper: texture_2d<f32>, world: vec3<f32>) -> f32 {
+fn field_value(slot: DataSlot, lower: texture_2d<f32>, upper: texture_2d<f32>, world: vec3<f32>) -> f32 {
     let uv = vec2<f32>(slot.uv.x * world.x + slot.uv.y, slot.uv.z * world.y + slot.uv.w);
     let a = bilinear(lower, uv);
-    let u = slot.params.z;
+    let u = slot.time_weight;
     let b = select(bilinear(upper, uv), a, u <= 0.0);
     let scalar = select(mix(a, b, u), NODATA, a < NO_VALUE || b < NO_VALUE);
-    return select(scalar, nearest(lower, uv), slot.params.y > 0.5);
+    return select(scalar, nearest(lower, uv), slot.label != 0u);
 }
 
 // The value as a position 0..1 along the mapping: scalars over the range (reversed if asked),
 // labels by class index.
-fn normalized(slot: Slot, v: f32) -> f32 {
+fn normalized(slot: DataSlot, v: f32) -> f32 {
     var n = 0.0;
-    if slot.params.y > 0.5 {
-        n = v / max(slot.range.z - 1.0, 1.0);
+    if slot.label != 0u {
+        n = v / max(slot.classes - 1.0, 1.0);
     } else {
-        n = (v - slot.range.x) / (slot.range.y - slot.range.x);
+        n = (v - slot.range_low) / (slot.range_high - slot.range_low);
     }
     n = saturate(n);
-    return select(n, 1.0 - n, slot.range.w > 0.5);
+    return select(n, 1.0 - n, slot.reverse != 0u);
 }
 
 // The colour table entry: scalars by round((v - lo)/(hi - lo)·255) (the table is already
 // reversed), labels by class index (`fields::Lut::index_of`).
-fn lut_color(slot: Slot, lut: texture_2d<f32>, v: f32) -> vec4<f32> {
+fn lut_color(slot: DataSlot, lut: texture_2d<f32>, v: f32) -> vec4<f32> {
     var i = round(v);
-    if slot.params.y < 0.5 {
-        i = round((v - slot.range.x) / (slot.range.y - slot.range.x) * 255.0);
+    if slot.label == 0u {
+        i = round((v - slot.range_low) / (slot.range_high - slot.range_low) * 255.0);
     }
     return textureLoad(lut, vec2<i32>(i32(clamp(i, 0.0, 255.0)), 0), 0);
 }
@@ -138,8 +109,8 @@ struct Features {
 
 // Applies the value of slot `index` to the features (Table 9.1 targets); nodata selects the
 // empty feature 0 (no early return, see `bilinear`).
-fn apply(index: u32, slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: ptr<function, Features>) {
-    let feature = select(0u, u32(slot.params.x), v >= NO_VALUE);
+fn apply(index: u32, slot: DataSlot, lut: texture_2d<f32>, v: f32, object: u32, f: ptr<function, Features>) {
+    let feature = select(0u, slot.feature, v >= NO_VALUE);
     let n = normalized(slot, v);
     let label = u32(max(round(v), 0.0));
     switch feature {
@@ -149,17 +120,17 @@ fn apply(index: u32, slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: p
         }
         case 2u: {
             // High values hatch darkly.
-            (*f).tone = vec2<f32>(1.0 - n, slot.params.w);
+            (*f).tone = vec2<f32>(1.0 - n, slot.opacity);
         }
         case 3u: {
-            (*f).tam = label % u32(data.info.w);
+            (*f).tam = label % data.tams;
         }
         case 4u: {
             (*f).sam = label % SAM_CHANNELS + 1u;
         }
         case 5u: {
             // A plant keeps its silhouettes with probability n (per object, stable in time).
-            let keep = f32(hash(object) & 0xffffu) / 65535.0 < n * slot.params.w + (1.0 - slot.params.w);
+            let keep = f32(hash(object) & 0xffffu) / 65535.0 < n * slot.opacity + (1.0 - slot.opacity);
             (*f).keep = select(0u, 1u, keep);
         }
         case 6u: {
@@ -174,7 +145,7 @@ fn apply(index: u32, slot: Slot, lut: texture_2d<f32>, v: f32, object: u32, f: p
 fn fs_data(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<u32> {
     let p = vec2<i32>(frag.xy);
     // Without a hatch-pattern mapping a pixel keeps the TAM of its layer's style (thesis 8.2.8).
-    let own_tam = u32(styles.slots[style_slot(textureLoad(id_tex, p, 0).x)].color2.z);
+    let own_tam = styles.slots[style_slot(textureLoad(id_tex, p, 0).x)].hatch_map;
     var f = Features(vec3<f32>(1.0), vec2<f32>(0.0), own_tam, 0u, 1u, vec3<f32>(0.0));
     let depth = textureLoad(depth_tex, p, 0).r;
     // The background has no data. Selected, not branched on: see `bilinear`.

@@ -1,28 +1,13 @@
 // Data layers (thesis 9.3) as the compose pass reads them: one Rgba32Uint texel per pixel
-// written by the projection pass (`shaders/data.wgsl`, `render::projection`), or "no data"
-// (white tint, no tone weight, the style's TAM, silhouettes kept, no coloured hatching) when
-// the pass did not run; and the hatch-colour slots (binding 12), which `ProjectionPass::encode` writes.
-
-// Thesis 9.2.2, Fig. 9.3: one hatch-colour slot (the mapping at that position of the view).
-struct HatchColor {
-    // rgb: ink colour (sRGB), a: opacity (0: the slot draws no coloured hatching)
-    color: vec4<f32>,
-    // x, y: cos and sin of the rotation of the hatch texture coordinates, which gives the
-    // slot's strokes their own direction
-    rotation: vec4<f32>,
-};
-
-struct HatchColors {
-    slots: array<HatchColor, 3>,
-};
-
-@group(0) @binding(11) var data_tex: texture_2d<u32>;
-@group(0) @binding(12) var<uniform> hatch_colors: HatchColors;
+// (`data_tex`) written by the projection pass (`shaders/data.wgsl`, `render::projection`), or
+// "no data" (white tint, no tone weight, the style's TAM, silhouettes kept, no coloured
+// hatching) when the pass did not run; and the hatch-colour slots (`hatch_colors`:
+// `render::projection::HatchColors`), which `ProjectionPass::prepare` writes.
 
 fn data_at(p: vec2<i32>) -> vec4<u32> {
     if !DATA_LAYERS {
         // "No data" as the projection pass would clear to, with the style's TAM.
-        return vec4<u32>(0xffffffffu, 0u, u32(post.color2.z), 1u);
+        return vec4<u32>(0xffffffffu, 0u, post.hatch_map, 1u);
     }
     return textureLoad(data_tex, p, 0);
 }

@@ -3,41 +3,9 @@
 // object and patch IDs, the hatch texture coordinates and the screen projection E of the HLP
 // normal that the post passes need.
 
-// The geometry-pass parameters of one style slot (`render::gbuffer::LayerUniform`).
-struct LayerStyle {
-    // x: HLP normal blend, y: hatch space (0 hybrid, 1 image), z: HLP abstraction 1 - f
-    // (eq. 4.8), w: colour abstraction (texture -> average material colour, thesis 6.2)
-    hlp: vec4<f32>,
-    // x: TAM tiles per π (m = n), y: surface function c (eq. 6.6), w: image-space tile (px)
-    hatch: vec4<f32>,
-    // x: leaf mode (0 original, 1 billboard, 2 reoriented, 3 elliptical), y: leaf size,
-    // z: leaf shape (α_t from α_max to α_min, thesis 4.1), w: leaf outline Δα (eq. 4.1)
-    leaf: vec4<f32>,
-    // implicit-surface illumination (Luft et al. 2007): x blend towards the implicit normal
-    // (§3.3), y ambient occlusion (how much k_a of eq. 4 darkens the ambient light)
-    implicit: vec4<f32>,
-};
-
-struct Frame {
-    view_proj: mat4x4<f32>,
-    view: mat4x4<f32>,
-    camera_pos: vec4<f32>,
-    // x: tan(fov/2), y: image height (px), z: image width (px),
-    // w: metres per pixel of a plan view (orthographic; 0 in perspective)
-    viewport: vec4<f32>,
-    // x: cos(-roll), y: sin(-roll)
-    roll: vec4<f32>,
-};
-
-struct Material {
-    base_color: vec4<f32>,
-    // x: alpha cutoff (< 0: opaque; α_max for foliage), y: unused, z: α_min of the leaf shape
-    // map (thesis 4.1; the cutoff for other kinds), w: scale of leaf particles drawn as a share
-    // of the leaves (SPEC P4)
-    params: vec4<f32>,
-    // average colour of the textured material, linear RGB (abstract colour, thesis 6.2)
-    average_color: vec4<f32>,
-};
+// The blocks `frame` (`render::gbuffer::GeometryFrame`), `layer` (`LayerStyle`: the
+// geometry-pass parameters of one style slot) and `material` (`SurfaceMaterial`) are declared
+// ahead of this file from their Rust definitions.
 
 // The kind of surface a pipeline draws (`render::gbuffer::Surface`): 0 terrain, 1 wood,
 // 2 foliage, 3 billboard. One pipeline per kind, so each shader holds only its kind's code:
@@ -46,7 +14,7 @@ override SURFACE: u32 = 0u;
 // Whether the pipeline draws leaf particles (`vs_leaf`), which may be elliptical.
 override LEAF_PARTICLES: bool = false;
 
-@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(0) var<uniform> frame: GeometryFrame;
 // Reference texture coordinates R_uv of every (instance, HLP) pair (thesis eq. 6.2).
 @group(0) @binding(1) var<storage, read> references: array<vec2<f32>>;
 // The style of the layer being drawn (thesis 8.2.8): every draw holds the instances of one
@@ -55,7 +23,7 @@ override LEAF_PARTICLES: bool = false;
 // lavapipe, and indexing a uniform array with a computed slot leaked memory every frame in
 // its version 22.3 (see tests/memory.rs).
 @group(0) @binding(2) var<uniform> layer: LayerStyle;
-@group(1) @binding(0) var<uniform> material: Material;
+@group(1) @binding(0) var<uniform> material: SurfaceMaterial;
 @group(1) @binding(1) var base_tex: texture_2d<f32>;
 @group(1) @binding(2) var base_sampler: sampler;
 
@@ -128,7 +96,7 @@ fn to_world(p: vec3<f32>, in: VertexIn) -> vec3<f32> {
 // Metres one pixel spans at linear depth `depth`: the perspective footprint, or the constant one
 // of an orthographic plan view.
 fn metres_per_px(depth: f32) -> f32 {
-    return select(2.0 * depth * frame.viewport.x / frame.viewport.y, frame.viewport.w, frame.viewport.w > 0.0);
+    return select(2.0 * depth * frame.tan_half_fov / frame.height, frame.plan_metres_per_pixel, frame.plan_metres_per_pixel > 0.0);
 }
 
 // Thesis eq. 4.8–4.9: P' = f·P + (1 − f)·P_HLP with P_HLP = C + r·N_HLP/|N_HLP| the leaf
@@ -146,7 +114,7 @@ fn hlp_blend(p: vec3<f32>, hlp: vec4<f32>, abstraction: f32) -> vec3<f32> {
 // data layer maps onto abstraction at the plant's position by that mapping's weight (thesis
 // Table 9.1; `lod_mask.zw`, zero without such a mapping).
 fn plant_abstraction(lod_mask: vec4<f32>) -> f32 {
-    return mix(layer.hlp.z, lod_mask.z, lod_mask.w);
+    return mix(layer.hlp_abstraction, lod_mask.z, lod_mask.w);
 }
 
 fn view_depth(world: vec3<f32>) -> f32 {
@@ -243,7 +211,7 @@ fn in_plane(v: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 
 // Leaf particles (thesis 4.1–4.2, ch. 7; NPAR §4): one quad per leaf, placed about the leaf's
 // centre moved by the HLP abstraction (eq. 4.8–4.9) and sized by `leaf_size` and the share of
-// leaves drawn (`material.params.w`), turned per mode: facing the camera (billboard, SPEC R2),
+// leaves drawn (`material.particle_scale`), turned per mode: facing the camera (billboard, SPEC R2),
 // with its normal along N_HLP = P − C pointing away from the HLP centre (eq. 4.7; thesis 4.2
 // "children book"), or as an ellipse tangent to the HLP sphere whose long axis runs around the
 // HLP's vertical axis ("Van Gogh", NPAR Fig. 3). The rest is the mesh vertices' `vertex_out`.
@@ -260,7 +228,7 @@ fn vs_leaf(leaf: LeafIn) -> VertexOut {
     // normal's side, so turned quads keep the handedness.
     let hand = select(-1.0, 1.0, dot(cross(leaf.axis_u, leaf.axis_v), leaf.normal) >= 0.0);
     var ellipse = 0.0;
-    let mode = u32(layer.leaf.x);
+    let mode = layer.leaf_mode;
     if mode == LEAF_BILLBOARD {
         // The camera's right, up and backward axes (rows of the view matrix) in model space.
         let inverse = vec2<f32>(leaf.rotation.x, -leaf.rotation.y);
@@ -283,7 +251,7 @@ fn vs_leaf(leaf: LeafIn) -> VertexOut {
         half = vec2<f32>(ELLIPSE_ASPECT * b, b);
         ellipse = 1.0;
     }
-    let size = layer.leaf.y * material.params.w;
+    let size = layer.leaf_size * material.particle_scale;
     let p = center + (a0 * half.x * leaf.corner.x + a1 * half.y * leaf.corner.y) * size;
     let vertex = VertexIn(p, n, leaf.uv, leaf.hlp, leaf.hlp_index, leaf.offset_scale, leaf.rotation,
         leaf.object_id, leaf.reference_base, leaf.lod_mask, leaf.reference_sphere, leaf.implicit);
@@ -308,14 +276,14 @@ struct GBuffer {
 // centre, brought to the HLP sphere at the centre's depth and expressed in tiles (m/π).
 fn hybrid_uv(frag: vec2<f32>, in: VertexOut) -> vec2<f32> {
     let center_ndc = in.hlp_clip.xy / in.hlp_clip.w;
-    let center_px = (center_ndc * vec2<f32>(0.5, -0.5) + 0.5) * vec2<f32>(frame.viewport.z, frame.viewport.y);
+    let center_px = (center_ndc * vec2<f32>(0.5, -0.5) + 0.5) * vec2<f32>(frame.width, frame.height);
     let depth = in.hlp_depth_radius.x;
     let radius = max(in.hlp_depth_radius.y, 1e-4);
-    let d = (frag - center_px) * metres_per_px(depth) / radius * (layer.hatch.x / PI);
+    let d = (frag - center_px) * metres_per_px(depth) / radius * (layer.hatch_tiles / PI);
     let o = vec2<f32>(d.x, -d.y);
     let q = vec2<f32>(frame.roll.x * o.x - frame.roll.y * o.y, frame.roll.y * o.x + frame.roll.x * o.y);
     let dz = (in.view_depth - (depth - radius)) / radius;
-    let f = 1.0 + layer.hatch.y * dz * dz;
+    let f = 1.0 + layer.hatch_surface * dz * dz;
     return in.reference_uv + f * q;
 }
 
@@ -330,7 +298,7 @@ fn screen_door(frag: vec2<f32>) -> f32 {
 // The normal of a billboard pixel: the HLP sphere's normal behind it (thesis eq. 4.7 for the
 // sphere seen as an impostor), from the pixel's offset to the projected HLP centre.
 fn billboard_normal(frag: vec2<f32>, in: VertexOut) -> vec3<f32> {
-    let center_px = (in.own_sphere.xy * vec2<f32>(0.5, -0.5) + 0.5) * vec2<f32>(frame.viewport.z, frame.viewport.y);
+    let center_px = (in.own_sphere.xy * vec2<f32>(0.5, -0.5) + 0.5) * vec2<f32>(frame.width, frame.height);
     let radius = max(in.own_sphere.w, 1e-4);
     var o = (frag - center_px) * metres_per_px(in.own_sphere.z) / radius;
     o = vec2<f32>(o.x, -o.y) / max(1.0, length(o));
@@ -347,8 +315,8 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let has_hlp = SURFACE >= 2u && in.hlp_depth_radius.y > 0.0;
     // Terrain is hatched in image space: seen from walking height a planar object-space mapping
     // is magnified far beyond the TAM's finest level in the foreground.
-    let image_space = SURFACE == 0u || layer.hlp.y > 0.5;
-    let t = select(select(in.object_uv, hybrid_uv(frag.xy, in), has_hlp), frag.xy / layer.hatch.w, image_space);
+    let image_space = SURFACE == 0u || layer.image_space != 0u;
+    let t = select(select(in.object_uv, hybrid_uv(frag.xy, in), has_hlp), frag.xy / layer.image_hatch_scale, image_space);
     // Area-based footprint: the geometric mean of the two axes, so grazing terrain keeps
     // crisp (foreshortened) strokes instead of the blur of the coarsest axis.
     let tiles_per_px = sqrt(length(dpdx(t)) * length(dpdy(t)));
@@ -356,15 +324,15 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // most abstract shape of the leaf shape map) with the leaf shape. `inside` is how far the
     // texel lies inside the shape: α − α_t, or 1 − (s² + t²) on an elliptical leaf (the
     // ellipse equation in the particle's coordinates).
-    let alpha_t = mix(material.params.x, material.params.z, layer.leaf.z);
+    let alpha_t = mix(material.alpha_cutoff, material.alpha_min, layer.leaf_shape);
     let elliptical = LEAF_PARTICLES && in.leaf.z > 0.5;
     let inside = select(texel.a - alpha_t, 1.0 - dot(in.leaf.xy, in.leaf.xy), elliptical);
-    if material.params.x >= 0.0 && inside < 0.0 {
+    if material.alpha_cutoff >= 0.0 && inside < 0.0 {
         discard;
     }
     // Thesis eq. 4.1: leaf texels with α − α_t ≤ Δα are the leaf's outline, drawn in ink by
     // the compose pass (albedo alpha OUTLINE_ALPHA instead of 1).
-    let outline = SURFACE == 2u && layer.leaf.w > 0.0 && inside <= layer.leaf.w;
+    let outline = SURFACE == 2u && layer.leaf_outline > 0.0 && inside <= layer.leaf_outline;
     // Terrain has no levels of detail to blend.
     let dither = screen_door(frag.xy);
     if SURFACE != 0u && (dither < in.lod_mask.x || dither >= in.lod_mask.y) {
@@ -381,9 +349,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let ka = length(in.implicit);
     var ambient_k = 1.0;
     if SURFACE >= 2u && ka > 1e-4 {
-        let blended = mix(n, in.implicit / ka, layer.implicit.x);
+        let blended = mix(n, in.implicit / ka, layer.implicit_normals);
         n = select(in.implicit / ka, normalize(blended), length(blended) > 1e-4);
-        ambient_k = max(mix(1.0, ka, layer.implicit.y), 1e-3);
+        ambient_k = max(mix(1.0, ka, layer.ambient_occlusion), 1e-3);
     }
     var e = vec2<f32>(0.0);
     var radius_px = 0.0;
@@ -393,7 +361,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
             nh = billboard_normal(frag.xy, in);
             n = nh;
         }
-        n = normalize(mix(n, nh, layer.hlp.x));
+        n = normalize(mix(n, nh, layer.normal_blend));
         let ev = (frame.view * vec4<f32>(nh, 0.0)).xy;
         e = select(vec2<f32>(0.0), normalize(ev), length(ev) > 1e-4);
         radius_px = in.hlp_depth_radius.y / metres_per_px(in.hlp_depth_radius.x);
@@ -401,8 +369,8 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     var out: GBuffer;
     // Thesis 6.2: abstract colour, the texture blended towards the material's average colour.
     // Elliptical leaves take the material's average colour: their shape is not the texture's.
-    let color = select(texel.rgb, material.average_color.rgb, elliptical);
-    out.albedo = vec4<f32>(mix(color, material.average_color.rgb, layer.hlp.w), select(1.0, OUTLINE_ALPHA, outline));
+    let color = select(texel.rgb, material.average_color, elliptical);
+    out.albedo = vec4<f32>(mix(color, material.average_color, layer.color_abstraction), select(1.0, OUTLINE_ALPHA, outline));
     out.normal = vec4<f32>(n * ambient_k, tiles_per_px);
     out.depth = vec2<f32>(in.view_depth, radius_px);
     out.ids = in.ids;

@@ -1,43 +1,9 @@
-// Style parameters shared by the post-processing passes (mirrors `render::style::PostParams`
-// and `PostUniform`): one `Post` per style slot, picked per pixel by the layer code of the ID
-// buffer (thesis 8.2.8: every layer in its own style).
-
-struct Post {
-    // x: contour scale c, y: contour threshold t (thesis eq. 5.1),
-    // z: isolated-pixel threshold t' (eq. 5.2), w: isolated-pixel removal on (1) / off (0)
-    contour: vec4<f32>,
-    // xyz: direction towards the sun (world), w: ambient light
-    light: vec4<f32>,
-    // x: albedo weight, y: contrast scale, z: reference L_ref (eq. 6.7), w: contour strength
-    tone: vec4<f32>,
-    // x: tone bands (0 = continuous), y: tone blur radius (px), z: TAM tone levels, w: TAM size
-    tone2: vec4<f32>,
-    // x: silhouette support (px), y: SAM stretch c (eq. 5.5), z: silhouette strength,
-    // w: art-map group (the compose pass that draws this slot)
-    silhouette: vec4<f32>,
-    // x: hatch strength, y: cos(roll), z: sin(roll), w: hatch brightness (tone lift)
-    hatch: vec4<f32>,
-    // x: colour amount, y: saturation, z: Gooch blend, w: toon blend
-    color: vec4<f32>,
-    // x: toon bands, y: sky amount, z: TAM index (the data pass's default hatch pattern)
-    color2: vec4<f32>,
-    ink: vec4<f32>,
-    paper: vec4<f32>,
-    sky_zenith: vec4<f32>,
-    sky_horizon: vec4<f32>,
-};
+// Helpers shared by the post-processing passes. The block `styles` (`render::passes::post_block::
+// Styles`: one `PostStyle` per style slot, picked per pixel by the layer code of the ID buffer,
+// thesis 8.2.8) and each pass's bindings are declared ahead of this file from the pass's
+// declaration (`render::passes`).
 
 const STYLE_SLOTS: u32 = 16u;
-
-struct Styles {
-    // World z of the view ray through NDC (x, y): ray.x + x·ray.y + y·ray.z; ray.w = tan(fov/2)·aspect
-    ray: vec4<f32>,
-    // x: art-map group drawn by this compose pass, y: tan(fov/2) (0 for a plan view)
-    frame_info: vec4<f32>,
-    slots: array<Post, STYLE_SLOTS>,
-};
-
-@group(0) @binding(0) var<uniform> styles: Styles;
 
 // Frame-wide specialisation (`render::post::Specialization`), set per pipeline: lavapipe runs
 // every instruction of a shader for every pixel whichever way its branches go, so a frame that
@@ -55,7 +21,7 @@ override DATA_LAYERS: bool = true;
 override SURFACE_COLOR: bool = true;
 
 // The style of the pixel being shaded; set by each fragment entry point with `use_style`.
-var<private> post: Post;
+var<private> post: PostStyle;
 
 // Style slot of an object ID: its layer code (top 8 bits; 0 background, 1 terrain, i + 2
 // vegetation layer i), or the base slot 0 beyond the slots.
@@ -78,8 +44,8 @@ fn clamp_coord(p: vec2<i32>, size: vec2<u32>) -> vec2<i32> {
 // 1 where there is none). x: the light, y: N·L.
 fn light_from_normal(encoded: vec3<f32>) -> vec2<f32> {
     let ka = length(encoded);
-    let ndl = dot(encoded / max(ka, 1e-6), post.light.xyz);
-    return vec2<f32>(post.light.w * ka + (1.0 - post.light.w) * max(ndl, 0.0), ndl);
+    let ndl = dot(encoded / max(ka, 1e-6), post.sun);
+    return vec2<f32>(post.ambient * ka + (1.0 - post.ambient) * max(ndl, 0.0), ndl);
 }
 
 // One axis of the separable Gaussian blur of the tone image (thesis Fig. 6.9d): the mean of

@@ -2,13 +2,11 @@
 // Fig. 6.9d), each pixel with the blur radius of its layer's style; the compose pass blurs
 // the result vertically.
 
-@group(0) @binding(1) var contour_tex: texture_2d<f32>;
-@group(0) @binding(2) var id_tex: texture_2d<u32>;
 
 @fragment
 fn fs_tone_blur(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(frag.xy);
     use_style(textureLoad(id_tex, p, 0).x);
-    let radius = select(i32(post.tone2.y), BLUR_RADIUS, BLUR_RADIUS >= 0);
+    let radius = select(i32(post.tone_blur), BLUR_RADIUS, BLUR_RADIUS >= 0);
     return vec4<f32>(gaussian_tone(contour_tex, 1u, p, vec2<i32>(1, 0), radius), 0.0, 0.0, 1.0);
 }

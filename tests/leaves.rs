@@ -11,7 +11,7 @@ mod common;
 use common::{assert_matches_reference, full_detail, trees_on_a_plain};
 use glam::Vec3;
 use landsketch::render::style::LeafMode;
-use landsketch::render::{Renderer, Style};
+use landsketch::render::{FrameRequest, Readback, Renderer, Style};
 use landsketch::scene::Species;
 use landsketch::scene::camera::Camera;
 use landsketch::scene::mesh::Mesh;
@@ -40,7 +40,10 @@ fn outlined(mode: LeafMode) -> Style {
 
 /// The object IDs of the image show a plant.
 fn plant_mask(renderer: &Renderer, camera: &Camera, style: &Style) -> Vec<bool> {
-    let ids = renderer.object_ids_with_style(camera, style, WIDTH, HEIGHT).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(camera, style, WIDTH, HEIGHT).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     ids.iter().map(|id| id >> 24 >= 2).collect()
 }
 
@@ -96,7 +99,7 @@ fn every_leaf_mode_matches_its_reference() {
     let mut images = Vec::new();
     for (col, leaf_mode) in MODES.into_iter().enumerate() {
         for (row, style) in [sketch(leaf_mode), outlined(leaf_mode)].into_iter().enumerate() {
-            let image = renderer.render(&camera, &style, WIDTH, HEIGHT).unwrap();
+            let image = renderer.render(FrameRequest::new(&camera, &style, WIDTH, HEIGHT)).map(|f| f.image).unwrap();
             image::imageops::replace(&mut sheet, &image, i64::from(WIDTH) * col as i64, i64::from(HEIGHT) * row as i64);
             images.push(image);
         }
@@ -105,7 +108,9 @@ fn every_leaf_mode_matches_its_reference() {
     }
     assert_matches_reference(&sheet, Path::new("tests/reference/leaf_modes.png"), 0.03);
     // At this size a particle mode draws a quarter of the 1200 leaves, a quad each.
-    let triangles = |leaf_mode| renderer.draw_stats_with_style(&camera, &sketch(leaf_mode), WIDTH, HEIGHT).triangles;
+    let triangles = |leaf_mode| {
+        renderer.draw_stats(&FrameRequest::new(&camera, &sketch(leaf_mode), WIDTH, HEIGHT)).expect("stats").triangles
+    };
     assert_eq!(triangles(LeafMode::Original) - triangles(LeafMode::Elliptical), 2 * (1200 - 300));
     for (i, image) in images.iter().enumerate().skip(2) {
         assert_ne!(image, &images[i % 2], "{:?} draws the original leaves", MODES[i / 2]);
@@ -189,7 +194,7 @@ fn outlines_add_ink_and_abstract_shapes_cover_more() {
         ..Style::default()
     };
     let red = |style: &Style| {
-        let image = renderer.render(&camera, style, WIDTH, HEIGHT).unwrap();
+        let image = renderer.render(FrameRequest::new(&camera, style, WIDTH, HEIGHT)).map(|f| f.image).unwrap();
         image.pixels().filter(|p| p[0] > 200 && p[1] < 80 && p[2] < 80).count()
     };
     for leaf_mode in MODES {
@@ -228,7 +233,9 @@ fn a_far_plant_draws_fewer_larger_particles() {
     let leaves = scene.species[0].model.triangle_count_of(PartKind::Foliage) as u64 / 2;
     assert_eq!(leaves, 1200);
     let (near, far) = (camera_at(10.0), camera_at(60.0));
-    let stats = |camera: &Camera, leaf_mode| renderer.draw_stats_with_style(camera, &mode(leaf_mode), 400, 480);
+    let stats = |camera: &Camera, leaf_mode| {
+        renderer.draw_stats(&FrameRequest::new(camera, &mode(leaf_mode), 400, 480)).expect("stats")
+    };
     // As modelled, every card at every distance: the source geometry.
     let original = stats(&near, LeafMode::Original).triangles;
     assert_eq!(stats(&far, LeafMode::Original).triangles, original);
@@ -240,7 +247,10 @@ fn a_far_plant_draws_fewer_larger_particles() {
     }
     // The fewer particles are twice as large: the crown covers about as much as with all.
     let far_mask = |style: &Style| {
-        let ids = renderer.object_ids_with_style(&far, style, 400, 480).unwrap();
+        let ids = renderer
+            .render(FrameRequest::new(&far, style, 400, 480).read(Readback::IDS))
+            .map(|f| f.ids.unwrap_or_default())
+            .unwrap();
         ids.iter().filter(|id| *id >> 24 >= 2).count() as f32
     };
     let ratio = far_mask(&mode(LeafMode::Billboard)) / far_mask(&mode(LeafMode::Original));
@@ -256,7 +266,7 @@ fn photorealism_draws_the_original_leaves() {
     let leaves =
         Style { leaf_mode: LeafMode::Elliptical, leaf_size: 2.0, leaf_shape: 1.0, leaf_outline: 0.3, ..photo.clone() };
     assert_eq!(
-        renderer.render(&camera, &leaves, WIDTH, HEIGHT).unwrap(),
-        renderer.render(&camera, &photo, WIDTH, HEIGHT).unwrap()
+        renderer.render(FrameRequest::new(&camera, &leaves, WIDTH, HEIGHT)).map(|f| f.image).unwrap(),
+        renderer.render(FrameRequest::new(&camera, &photo, WIDTH, HEIGHT)).map(|f| f.image).unwrap()
     );
 }

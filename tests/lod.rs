@@ -8,7 +8,7 @@ use common::{assert_matches_reference, fraction, gpu, trees_on_a_plain};
 use landsketch::gis::Raster;
 use landsketch::prep::cache::DiskCache;
 use landsketch::prep::lod::{LodLevel, LodSettings};
-use landsketch::render::{RenderOptions, Renderer, Style};
+use landsketch::render::{FrameRequest, Readback, RenderOptions, Renderer, Style};
 use landsketch::scene::camera::Camera;
 use landsketch::scene::terrain::Terrain;
 use std::path::Path;
@@ -29,7 +29,13 @@ fn camera_at(distance: f32) -> Camera {
 
 /// The pixels showing a plant (object IDs with a vegetation layer code).
 fn plant_mask(renderer: &Renderer, camera: &Camera) -> Vec<bool> {
-    renderer.object_ids(camera, WIDTH, HEIGHT).unwrap().iter().map(|id| id >> 24 >= 2).collect()
+    renderer
+        .render(FrameRequest::new(camera, Style::default(), WIDTH, HEIGHT).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap()
+        .iter()
+        .map(|id| id >> 24 >= 2)
+        .collect()
 }
 
 fn overlap(a: &[bool], b: &[bool]) -> f64 {
@@ -48,7 +54,8 @@ fn every_level_shows_the_same_tree_at_near_middle_and_far_distance() {
     for (row, renderer) in renderers.iter().enumerate() {
         for (col, &distance) in distances.iter().enumerate() {
             let camera = camera_at(distance);
-            let image = renderer.render(&camera, Style::default(), WIDTH, HEIGHT).unwrap();
+            let image =
+                renderer.render(FrameRequest::new(&camera, Style::default(), WIDTH, HEIGHT)).map(|f| f.image).unwrap();
             let ink = fraction(&image, |l| l < 0.5);
             assert!(ink > 0.002, "level {row} at {distance} m draws no ink ({ink})");
             image::imageops::replace(&mut sheet, &image, i64::from(WIDTH) * col as i64, i64::from(HEIGHT) * row as i64);
@@ -78,18 +85,24 @@ fn instance_culling_removes_what_is_outside_the_frustum() {
     let scene = trees_on_a_plain(&positions);
     let renderer = Renderer::new(gpu(), &scene).unwrap();
     let camera = scene.default_camera;
-    let stats = renderer.draw_stats(&camera, 320, 240);
+    let stats = renderer.draw_stats(&FrameRequest::new(&camera, Style::default(), 320, 240)).expect("stats");
     assert_eq!(stats.plants, 10);
     assert_eq!(stats.plants_drawn, 5, "{stats:?}");
     // Nothing visible was culled: every tree ahead shows up in the ID buffer.
-    let ids = renderer.object_ids(&camera, 320, 240).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(&camera, Style::default(), 320, 240).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     for index in 0..ahead.len() as u32 {
         let id = (2 << 24) | (index + 1);
         assert!(ids.contains(&id), "tree {index} ahead is missing from the ID buffer");
     }
     // Turned around, the trees behind are the ones drawn.
     let back = Camera { yaw: 180.0, ..camera };
-    assert_eq!(renderer.draw_stats(&back, 320, 240).plants_drawn, 3);
+    assert_eq!(
+        renderer.draw_stats(&FrameRequest::new(&back, Style::default(), 320, 240)).expect("stats").plants_drawn,
+        3
+    );
 }
 
 #[test]
@@ -98,11 +111,11 @@ fn levels_are_chosen_by_distance_and_cut_the_triangles() {
     let scene = trees_on_a_plain(&positions);
     let renderer = Renderer::new(gpu(), &scene).unwrap();
     let camera = scene.default_camera;
-    let stats = renderer.draw_stats(&camera, 512, 384);
+    let stats = renderer.draw_stats(&FrameRequest::new(&camera, Style::default(), 512, 384)).expect("stats");
     assert!(stats.per_level.iter().all(|&n| n > 0), "near, middle and far trees: {stats:?}");
     assert!(stats.triangles < stats.source_triangles / 2, "{stats:?}");
     let full = Renderer::with_options(gpu(), &scene, &forced(LodLevel::Full)).unwrap();
-    let all = full.draw_stats(&camera, 512, 384);
+    let all = full.draw_stats(&FrameRequest::new(&camera, Style::default(), 512, 384)).expect("stats");
     assert_eq!(all.triangles, all.source_triangles, "forced full detail draws the source geometry");
 }
 
@@ -118,18 +131,23 @@ fn reference_points_thin_out_with_distance() {
     let px_per_metre = h as f32 / (2.0 * 30f32.to_radians().tan());
     let looking_north_from = |y: f32| Camera::perspective([0.0, y, 100.0 + height * 0.5], 0.0, 0.0, 60.0);
 
-    let near = renderer.draw_stats(&looking_north_from(-30.0), width, h);
+    let near =
+        renderer.draw_stats(&FrameRequest::new(&looking_north_from(-30.0), Style::default(), width, h)).expect("stats");
     assert!(near.per_level[0] + near.per_level[1] > 0, "{near:?}");
     assert!(near.reference_points > near.plants_drawn, "near trees bring their HLPs: {near:?}");
 
     // Every tree between 32 px (below the HLP level's blend band) and 12 px: one point each.
     let distance = height * px_per_metre / 30.0;
-    let middle = renderer.draw_stats(&looking_north_from(-distance), width, h);
+    let middle = renderer
+        .draw_stats(&FrameRequest::new(&looking_north_from(-distance), Style::default(), width, h))
+        .expect("stats");
     assert_eq!(middle.per_level, [0, 0, 60], "{middle:?}");
     assert_eq!(middle.reference_points, 60, "{middle:?}");
 
     // Far away the trees share the points of their grid cells.
-    let far = renderer.draw_stats(&looking_north_from(-height * px_per_metre / 4.0), width, h);
+    let far = renderer
+        .draw_stats(&FrameRequest::new(&looking_north_from(-height * px_per_metre / 4.0), Style::default(), width, h))
+        .expect("stats");
     assert_eq!(far.plants_drawn, 60, "{far:?}");
     assert_eq!(far.reference_points, 6, "{far:?}");
 }
@@ -150,15 +168,18 @@ fn terrain_chunks_coarsen_with_distance_without_cracks() {
     let renderer = Renderer::new(gpu(), &scene).unwrap();
     let camera = Camera::perspective([0.0, -1100.0, 125.0], 0.0, -5.0, 60.0);
     let (width, height) = (320, 240);
-    let stats = renderer.draw_stats(&camera, width, height);
+    let stats = renderer.draw_stats(&FrameRequest::new(&camera, Style::default(), width, height)).expect("stats");
     let full = 2 * (n as u64 - 1) * (n as u64 - 1);
     assert_eq!(stats.source_triangles, full);
     assert!(stats.triangles < full / 4, "distant chunks are coarser or culled: {stats:?}");
     // No cracks between chunks at different levels: below the horizon every pixel is terrain.
-    let ids = renderer.object_ids(&camera, width, height).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(&camera, Style::default(), width, height).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     let holes = ids[(width * height / 2) as usize..].iter().filter(|&&id| id == 0).count();
     assert_eq!(holes, 0, "background shows through the terrain in {holes} pixels");
-    let image = renderer.render(&camera, Style::default(), width, height).unwrap();
+    let image = renderer.render(FrameRequest::new(&camera, Style::default(), width, height)).map(|f| f.image).unwrap();
     assert!(fraction(&image, |l| l < 0.5) > 0.01, "the hills are drawn");
 }
 
@@ -171,7 +192,7 @@ fn a_second_start_with_the_disk_cache_does_no_preprocessing() {
     let render = |cache: &Arc<DiskCache>| {
         let options = RenderOptions { cache: Some(cache.clone()), ..RenderOptions::default() };
         let renderer = Renderer::with_options(gpu(), &scene, &options).unwrap();
-        renderer.render(&camera_at(45.0), Style::default(), WIDTH, HEIGHT).unwrap()
+        renderer.render(FrameRequest::new(&camera_at(45.0), Style::default(), WIDTH, HEIGHT)).map(|f| f.image).unwrap()
     };
     let first_cache = Arc::new(DiskCache::open(dir.path()).unwrap());
     let first = render(&first_cache);

@@ -6,7 +6,7 @@
 mod common;
 
 use common::{full_detail, trees_on_a_plain};
-use landsketch::render::Style;
+use landsketch::render::{FrameRequest, Style};
 
 fn resident_mib() -> f64 {
     let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
@@ -31,7 +31,8 @@ fn rendering_many_frames_does_not_grow_memory() {
     let scene = trees_on_a_plain(&positions);
     let renderer = full_detail(&scene);
     let camera = scene.default_camera;
-    let frame = || renderer.render(&camera, Style::default(), 96, 72).expect("frame");
+    let frame =
+        || renderer.render(FrameRequest::new(&camera, Style::default(), 96, 72)).map(|f| f.image).expect("frame");
     // Warm up: pipelines, shader variants, the cached render targets.
     for _ in 0..10 {
         frame();
@@ -86,7 +87,10 @@ fn rendering_many_mapped_frames_does_not_grow_memory() {
     let data = DataView { mappings: mappings.to_vec(), time: None };
     let frame = |i: usize| {
         let camera = Camera::plan(i as f32 % 7.0, 0.0, 300.0, 200.0);
-        renderer.render_with_data(&camera, Style::default(), 64, 64, &data).expect("frame")
+        renderer
+            .render(FrameRequest::new(&camera, Style::default(), 64, 64).data(&data))
+            .map(|f| f.image)
+            .expect("frame")
     };
     for i in 0..20 {
         frame(i);

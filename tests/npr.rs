@@ -7,7 +7,7 @@ mod common;
 use common::{assert_matches_reference, fraction, full_detail, luminance, trees_on_a_plain};
 use landsketch::render::coherence::{camera_path, flicker};
 use landsketch::render::style::HatchSpace;
-use landsketch::render::{RenderError, Renderer, Style};
+use landsketch::render::{FrameRequest, Readback, RenderError, Renderer, Style};
 use landsketch::scene::camera::Camera;
 use std::path::PathBuf;
 
@@ -37,7 +37,7 @@ fn contours_at_three_thresholds() {
     for threshold in [0.05f32, 0.3, 1.5] {
         let style =
             Style { contour_threshold: threshold, hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
-        let image = renderer.render(&camera, &style, SIZE.0, SIZE.1).unwrap();
+        let image = renderer.render(FrameRequest::new(&camera, &style, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
         assert_matches_reference(&image, &reference(&format!("contours_t{threshold}")), 0.02);
         let covered = ink(&image);
         assert!(covered > 0.005, "threshold {threshold}: no contours at all");
@@ -59,14 +59,17 @@ fn every_silhouette_art_map_on_the_same_tree() {
         tone_reference: 0.3,
         ..Style::default()
     };
-    let without = renderer.render(&camera, &plain, SIZE.0, SIZE.1).unwrap();
-    let ids = renderer.object_ids(&camera, SIZE.0, SIZE.1).unwrap();
+    let without = renderer.render(FrameRequest::new(&camera, &plain, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(&camera, Style::default(), SIZE.0, SIZE.1).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     let (_, sams) = renderer.art_map_counts();
     assert!(sams >= 4);
     let mut images = Vec::new();
     for map in 0..sams {
         let style = Style { silhouette_map: map, silhouette_strength: 1.0, ..plain.clone() };
-        let image = renderer.render(&camera, &style, SIZE.0, SIZE.1).unwrap();
+        let image = renderer.render(FrameRequest::new(&camera, &style, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
         assert_matches_reference(&image, &reference(&format!("sam_{map}")), 0.02);
         // Stylized silhouettes add ink inside the tree's outline, never outside it.
         assert!(ink(&image) > ink(&without), "SAM {map} adds no strokes");
@@ -102,7 +105,7 @@ fn every_tonal_art_map_at_three_tones() {
                 contour_strength: 0.0,
                 ..Style::default()
             };
-            let image = renderer.render(&camera, &style, SIZE.0, SIZE.1).unwrap();
+            let image = renderer.render(FrameRequest::new(&camera, &style, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
             assert_matches_reference(&image, &reference(&format!("tam_{map}_tone{tone}")), 0.02);
             let darkness =
                 1.0 - image.pixels().map(|p| f64::from(luminance(p))).sum::<f64>() / f64::from(SIZE.0 * SIZE.1);
@@ -129,11 +132,17 @@ fn hybrid_hatching_flickers_less_than_image_space_hatching() {
 fn invalid_npr_parameters_are_clear_errors() {
     let (renderer, camera) = close_up();
     let negative = Style { silhouette_support: -2.0, ..Style::default() };
-    let err = renderer.render(&camera, &negative, 32, 32).unwrap_err().to_string();
+    let err = renderer.render(FrameRequest::new(&camera, &negative, 32, 32)).map(|f| f.image).unwrap_err().to_string();
     assert!(err.contains("silhouette_support"), "{err}");
     let (tams, sams) = renderer.art_map_counts();
-    let err = renderer.render(&camera, &Style { hatch_map: tams, ..Style::default() }, 32, 32).unwrap_err();
+    let err = renderer
+        .render(FrameRequest::new(&camera, &Style { hatch_map: tams, ..Style::default() }, 32, 32))
+        .map(|f| f.image)
+        .unwrap_err();
     assert!(matches!(err, RenderError::UnknownArtMap { field: "hatch_map", .. }), "{err}");
-    let err = renderer.render(&camera, &Style { silhouette_map: sams + 3, ..Style::default() }, 32, 32).unwrap_err();
+    let err = renderer
+        .render(FrameRequest::new(&camera, &Style { silhouette_map: sams + 3, ..Style::default() }, 32, 32))
+        .map(|f| f.image)
+        .unwrap_err();
     assert!(err.to_string().contains("silhouette_map"), "{err}");
 }

@@ -15,7 +15,7 @@ use landsketch::fields::{
 };
 use landsketch::gis::{Crs, CrsDefinition, GeoTransform, Raster};
 use landsketch::render::projection::{DataLayer, DataMapping, DataView};
-use landsketch::render::{RenderError, Renderer, Style};
+use landsketch::render::{FrameRequest, RenderError, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
 use std::path::Path;
@@ -81,7 +81,7 @@ fn view(key: &str, field: Field, mapping: Mapping, time: Option<DateTime<Utc>>) 
 }
 
 fn render(data: &DataView, style: &Style) -> image::RgbaImage {
-    plain().1.render_with_data(&plan(), style, SIZE, SIZE, data).expect("render")
+    plain().1.render(FrameRequest::new(&plan(), style, SIZE, SIZE).data(data)).map(|f| f.image).expect("render")
 }
 
 /// The pixel at scene point (x, y) of the plan view.
@@ -356,10 +356,13 @@ fn abstraction_follows_the_field_per_plant() {
     let (w, h) = (160, 120);
     let halves = field(FieldKind::Scalar, 20, 20, 10.0, &[("", &|col, _| if col < 10 { 0.0 } else { 1.0 })]);
     let data = view("halves", halves, Mapping::new("halves", MappingTarget::Abstraction), None);
-    let shown = renderer.render_with_data(&camera, Style::default(), w, h, &data).expect("render");
+    let shown = renderer
+        .render(FrameRequest::new(&camera, Style::default(), w, h).data(&data))
+        .map(|f| f.image)
+        .expect("render");
     let as_style = |a: f32| {
         let style = Style { hlp_abstraction: a, ..Style::default() };
-        renderer.render_with_data(&camera, style, w, h, &DataView::default()).expect("render")
+        renderer.render(FrameRequest::new(&camera, style, w, h)).map(|f| f.image).expect("render")
     };
     let (modelled, abstract_) = (as_style(0.0), as_style(1.0));
     let differing = |a: &image::RgbaImage, b: &image::RgbaImage, xs: std::ops::Range<u32>| {
@@ -378,7 +381,11 @@ fn too_many_mappings_are_errors() {
     let layer = Arc::new(DataLayer { key: "one".into(), field: one });
     let mapping = |target| DataMapping { layer: layer.clone(), mapping: Mapping::new("one", target) };
     let four = DataView { mappings: vec![mapping(MappingTarget::Color); 4], time: None };
-    let err = plain().1.render_with_data(&plan(), Style::default(), 16, 16, &four).unwrap_err();
+    let err = plain()
+        .1
+        .render(FrameRequest::new(&plan(), Style::default(), 16, 16).data(&four))
+        .map(|f| f.image)
+        .unwrap_err();
     assert!(matches!(err, RenderError::Data(_)) && err.to_string().contains("at most 3"), "{err}");
 }
 
@@ -417,7 +424,10 @@ fn sample_layers_load_and_lie_on_the_boulder_terrain() {
         ],
         time: Some(parse_time("2024-07-01T15:30:00Z").unwrap()),
     };
-    let image = renderer.render_with_data(&camera, Style::default(), 192, 192, &data).expect("render");
+    let image = renderer
+        .render(FrameRequest::new(&camera, Style::default(), 192, 192).data(&data))
+        .map(|f| f.image)
+        .expect("render");
     assert_matches_reference(&image, &reference("boulder_plume_hazard"), 0.03);
     // The plume is coloured where it is (east-north-east of its source after 3.5 hours) and
     // absent far from it.

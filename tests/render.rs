@@ -6,7 +6,7 @@ mod common;
 
 use common::{assert_matches_reference, fraction, gpu, luminance, trees_on_a_plain};
 use landsketch::render::gbuffer::TERRAIN_LAYER_CODE;
-use landsketch::render::{RenderError, Renderer, Style};
+use landsketch::render::{FrameRequest, Readback, RenderError, Renderer, Style};
 use landsketch::scene::Scene;
 use std::collections::HashSet;
 use std::path::Path;
@@ -29,7 +29,8 @@ fn paper() -> [u8; 3] {
 #[test]
 fn sample_view_matches_reference_and_looks_like_a_sketch() {
     let (scene, renderer) = sample();
-    let image = renderer.render(&scene.default_camera, Style::default(), 512, 384).unwrap();
+    let image =
+        renderer.render(FrameRequest::new(&scene.default_camera, Style::default(), 512, 384)).map(|f| f.image).unwrap();
     assert_matches_reference(&image, Path::new("tests/reference/sample_view.png"), 0.02);
 
     let ink = fraction(&image, |l| l < 0.5);
@@ -41,7 +42,10 @@ fn sample_view_matches_reference_and_looks_like_a_sketch() {
         assert_eq!(image.get_pixel(x, 2).0[..3], paper(), "sky pixel at x={x}");
     }
     // The terrain carries hatching where it turns away from the sun: some ink, mostly paper.
-    let ids = renderer.object_ids(&scene.default_camera, 512, 384).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(&scene.default_camera, Style::default(), 512, 384).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     let terrain: Vec<f32> =
         image.pixels().zip(&ids).filter(|(_, id)| *id >> 24 == TERRAIN_LAYER_CODE).map(|(p, _)| luminance(p)).collect();
     let terrain_ink = terrain.iter().filter(|l| **l < 0.9).count() as f64 / terrain.len() as f64;
@@ -51,7 +55,10 @@ fn sample_view_matches_reference_and_looks_like_a_sketch() {
 #[test]
 fn default_view_shows_terrain_and_hundreds_of_plants_of_both_layers() {
     let (scene, renderer) = sample();
-    let ids = renderer.object_ids(&scene.default_camera, 1024, 768).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(&scene.default_camera, Style::default(), 1024, 768).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     assert_eq!(ids.len(), 1024 * 768);
     let distinct: HashSet<u32> = ids.iter().copied().collect();
     assert!(distinct.contains(&0), "background visible");
@@ -72,7 +79,8 @@ fn a_tree_on_a_plain_is_outlined_on_paper() {
     let scene = tree_on_a_plain();
     let renderer = Renderer::new(gpu(), &scene).unwrap();
     let (w, h) = (256, 192);
-    let image = renderer.render(&scene.default_camera, Style::default(), w, h).unwrap();
+    let image =
+        renderer.render(FrameRequest::new(&scene.default_camera, Style::default(), w, h)).map(|f| f.image).unwrap();
     assert_matches_reference(&image, Path::new("tests/reference/tree_on_plain.png"), 0.02);
 
     // Sky and the sunlit flat ground far from the tree are plain paper.
@@ -87,7 +95,7 @@ fn a_tree_on_a_plain_is_outlined_on_paper() {
 
     // With contours and hatching switched off the whole image is paper.
     let blank = Style { contour_strength: 0.0, hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
-    let image = renderer.render(&scene.default_camera, &blank, w, h).unwrap();
+    let image = renderer.render(FrameRequest::new(&scene.default_camera, &blank, w, h)).map(|f| f.image).unwrap();
     assert!(image.pixels().all(|p| p.0[..3] == paper()));
 }
 
@@ -96,9 +104,16 @@ fn isolated_pixel_removal_only_removes_ink() {
     let scene = tree_on_a_plain();
     let renderer = Renderer::new(gpu(), &scene).unwrap();
     let hatchless = Style { hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
-    let with = renderer.render(&scene.default_camera, &hatchless, 256, 192).unwrap();
+    let with =
+        renderer.render(FrameRequest::new(&scene.default_camera, &hatchless, 256, 192)).map(|f| f.image).unwrap();
     let without = renderer
-        .render(&scene.default_camera, &Style { isolated_pixel_removal: false, ..hatchless.clone() }, 256, 192)
+        .render(FrameRequest::new(
+            &scene.default_camera,
+            &Style { isolated_pixel_removal: false, ..hatchless.clone() },
+            256,
+            192,
+        ))
+        .map(|f| f.image)
         .unwrap();
     let ink = |img: &image::RgbaImage| fraction(img, |l| l < 0.9);
     assert!(ink(&with) < ink(&without), "eq. 5.2 removed nothing: {} vs {}", ink(&with), ink(&without));
@@ -111,9 +126,15 @@ fn isolated_pixel_removal_only_removes_ink() {
 fn bad_sizes_and_styles_are_errors() {
     let (scene, renderer) = sample();
     let cam = scene.default_camera;
-    assert!(matches!(renderer.render(&cam, Style::default(), 0, 10), Err(RenderError::Size { .. })));
-    assert!(matches!(renderer.render(&cam, Style::default(), 100_000, 10), Err(RenderError::Size { .. })));
+    assert!(matches!(
+        renderer.render(FrameRequest::new(&cam, Style::default(), 0, 10)).map(|f| f.image),
+        Err(RenderError::Size { .. })
+    ));
+    assert!(matches!(
+        renderer.render(FrameRequest::new(&cam, Style::default(), 100_000, 10)).map(|f| f.image),
+        Err(RenderError::Size { .. })
+    ));
     let bad = Style { contour_threshold: -1.0, ..Style::default() };
-    let err = renderer.render(&cam, &bad, 64, 64).unwrap_err().to_string();
+    let err = renderer.render(FrameRequest::new(&cam, &bad, 64, 64)).map(|f| f.image).unwrap_err().to_string();
     assert!(err.contains("contour_threshold"), "{err}");
 }

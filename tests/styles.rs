@@ -8,7 +8,7 @@ mod common;
 use common::{assert_matches_reference, fraction, full_detail, gpu, luminance, trees_on_a_plain};
 use landsketch::render::presets::PRESETS;
 use landsketch::render::style::{FrameStyle, TERRAIN_LAYER};
-use landsketch::render::{RenderError, Renderer, Style};
+use landsketch::render::{FrameRequest, Readback, RenderError, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::Sun;
 use landsketch::scene::camera::Camera;
@@ -47,8 +47,14 @@ fn with_ink(styles: &FrameStyle, ink: [f32; 3]) -> FrameStyle {
 /// of every pixel. The output is mix(base, ink, coverage), so the difference of the two
 /// renders divided by the difference of the inks is the coverage.
 fn render_with_coverage(renderer: &Renderer, camera: &Camera, styles: &FrameStyle) -> (image::RgbaImage, Vec<f32>) {
-    let black = renderer.render(camera, with_ink(styles, [0.0; 3]), SIZE.0, SIZE.1).unwrap();
-    let white = renderer.render(camera, with_ink(styles, [1.0; 3]), SIZE.0, SIZE.1).unwrap();
+    let black = renderer
+        .render(FrameRequest::new(camera, with_ink(styles, [0.0; 3]), SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
+    let white = renderer
+        .render(FrameRequest::new(camera, with_ink(styles, [1.0; 3]), SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     let coverage = black
         .pixels()
         .zip(white.pixels())
@@ -79,7 +85,7 @@ fn every_preset_matches_its_reference() {
     let camera = scene.default_camera;
     for p in PRESETS {
         let styles = FrameStyle::from(p.style().unwrap());
-        let image = renderer.render(&camera, &styles, SIZE.0, SIZE.1).unwrap();
+        let image = renderer.render(FrameRequest::new(&camera, &styles, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
         assert_matches_reference(&image, &reference(&format!("preset_{}", p.name)), 0.02);
         let (_, coverage) = render_with_coverage(renderer, &camera, &styles);
         let ink = coverage.iter().filter(|c| **c > 0.1).count() as f32 / coverage.len() as f32;
@@ -152,7 +158,7 @@ fn encode_srgb(c: f32) -> f32 {
 fn photoreal_pixels_are_albedo_times_lambert_and_ambient() {
     let (renderer, camera) = lit_plain();
     let style = Style { photorealism: 1.0, ambient: 0.3, ..Style::default() };
-    let image = renderer.render(&camera, &style, SIZE.0, SIZE.1).unwrap();
+    let image = renderer.render(FrameRequest::new(&camera, &style, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     // Flat ground, normal (0, 0, 1): N·L = sin 30° = 0.5; light = 0.3 + 0.7·0.5 = 0.65.
     let light = 0.3 + 0.7 * 0.5;
     let ground = image.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
@@ -168,14 +174,20 @@ fn photoreal_pixels_are_albedo_times_lambert_and_ambient() {
     // Colour over the sketch: saturation 0 greys it, Gooch turns it cool or warm, the toon ramp
     // quantizes the light (0.65 with 3 bands → the middle band, 0.5).
     let sketch = Style { color: 1.0, hatch_strength: 0.0, contour_strength: 0.0, ambient: 0.3, ..Style::default() };
-    let grey = renderer.render(&camera, &Style { color_saturation: 0.0, ..sketch.clone() }, SIZE.0, SIZE.1).unwrap();
+    let grey = renderer
+        .render(FrameRequest::new(&camera, &Style { color_saturation: 0.0, ..sketch.clone() }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     assert!(chroma(grey.get_pixel(SIZE.0 / 2, SIZE.1 - 10)) < 0.01);
     let toon = Style { toon: 1.0, toon_levels: 3, ..sketch.clone() };
-    let image = renderer.render(&camera, &toon, SIZE.0, SIZE.1).unwrap();
+    let image = renderer.render(FrameRequest::new(&camera, &toon, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     let ground = image.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
     let expected = encode_srgb(0.5 * 0.5) * 255.0;
     assert!((f32::from(ground[0]) - expected).abs() <= 2.0, "toon {ground:?} vs {expected}");
-    let gooch = renderer.render(&camera, &Style { gooch: 1.0, ..sketch }, SIZE.0, SIZE.1).unwrap();
+    let gooch = renderer
+        .render(FrameRequest::new(&camera, &Style { gooch: 1.0, ..sketch }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     let g = gooch.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
     // k = (1 + N·L)/2 = 0.75: 0.25·(0.2·k_d + (0, 0, 0.4)) + 0.75·(0.6·k_d + (0.4, 0.4, 0)).
     let expected_blue = encode_srgb(0.25 * (0.2 * 0.3 + 0.4) + 0.75 * (0.6 * 0.3)) * 255.0;
@@ -188,12 +200,18 @@ fn hlp_abstraction_pulls_leaves_onto_their_spheres() {
     let renderer = full_detail(&scene);
     let camera = Camera { position: [0.0, -16.0, 105.5], pitch: 8.0, fov: 50.0, ..scene.default_camera };
     let plain = Style { hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
-    let original = renderer.render(&camera, &plain, SIZE.0, SIZE.1).unwrap();
-    let abstract_ = renderer.render(&camera, &Style { hlp_abstraction: 1.0, ..plain.clone() }, SIZE.0, SIZE.1).unwrap();
+    let original = renderer.render(FrameRequest::new(&camera, &plain, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let abstract_ = renderer
+        .render(FrameRequest::new(&camera, &Style { hlp_abstraction: 1.0, ..plain.clone() }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     assert_matches_reference(&abstract_, &reference("hlp_abstraction"), 0.02);
     // Eq. 4.8 is a blend: half-way differs from the original less than the full projection,
     // and the trunk (no HLP) does not move.
-    let half = renderer.render(&camera, &Style { hlp_abstraction: 0.5, ..plain }, SIZE.0, SIZE.1).unwrap();
+    let half = renderer
+        .render(FrameRequest::new(&camera, &Style { hlp_abstraction: 0.5, ..plain }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     let (to_half, to_full) = (difference(&half, &original), difference(&abstract_, &original));
     assert!(0.0 < to_half && to_half < to_full, "{to_half} vs {to_full}");
     let trunk =
@@ -209,13 +227,17 @@ fn layers_have_styles_of_their_own_in_one_frame() {
     let overrides = serde_json::json!({"preset": "photorealism"});
     let mut mixed = FrameStyle::from(base.clone());
     mixed.layers.insert("existing".into(), base.layer(overrides.as_object().unwrap()).unwrap());
-    let image = renderer.render(&camera, &mixed, SIZE.0, SIZE.1).unwrap();
+    let image = renderer.render(FrameRequest::new(&camera, &mixed, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     assert_matches_reference(&image, &reference("mixed_existing_planned"), 0.02);
 
-    let ids = renderer.object_ids(&camera, SIZE.0, SIZE.1).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(&camera, Style::default(), SIZE.0, SIZE.1).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     let (_, coverage) = render_with_coverage(renderer, &camera, &mixed);
-    let photo = renderer.render(&camera, preset("photorealism"), SIZE.0, SIZE.1).unwrap();
-    let sketch = renderer.render(&camera, &base, SIZE.0, SIZE.1).unwrap();
+    let photo =
+        renderer.render(FrameRequest::new(&camera, preset("photorealism"), SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let sketch = renderer.render(FrameRequest::new(&camera, &base, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     let layer_pixels = |code: u32| ids.iter().enumerate().filter(move |(_, id)| *id >> 24 == code).map(|(i, _)| i);
     // `existing` (layer code 2) is photorealistic: no ink, and the pixels of the photorealistic
     // frame (the frames' geometry differs only where `planned` leaves are abstracted).
@@ -242,11 +264,11 @@ fn layers_have_styles_of_their_own_in_one_frame() {
     // The terrain by its name; unknown layers are errors naming the known ones.
     let mut terrain = FrameStyle::from(base.clone());
     terrain.layers.insert(TERRAIN_LAYER.into(), Style { hatch_map: 1, ..base.clone() });
-    let crossed = renderer.render(&camera, &terrain, SIZE.0, SIZE.1).unwrap();
+    let crossed = renderer.render(FrameRequest::new(&camera, &terrain, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     assert!(difference(&crossed, &sketch) > 0.01);
     let mut unknown = FrameStyle::from(base);
     unknown.layers.insert("meadow".into(), Style::default());
-    let err = renderer.render(&camera, &unknown, 32, 32).unwrap_err();
+    let err = renderer.render(FrameRequest::new(&camera, &unknown, 32, 32)).map(|f| f.image).unwrap_err();
     assert!(matches!(&err, RenderError::UnknownLayer { name, known } if name == "meadow" && known.contains("planned")));
 }
 
@@ -261,7 +283,11 @@ fn bad_presets_and_values_are_errors_naming_them() {
     assert!(err.contains("photorealism") && err.contains("0..=1"), "{err}");
     let (scene, renderer) = sample();
     let bad = Style { color_saturation: 3.0, ..Style::default() };
-    let err = renderer.render(&scene.default_camera, &bad, 32, 32).unwrap_err().to_string();
+    let err = renderer
+        .render(FrameRequest::new(&scene.default_camera, &bad, 32, 32))
+        .map(|f| f.image)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("color_saturation") && err.contains("0..=2"), "{err}");
 }
 
@@ -275,9 +301,15 @@ fn a_hidden_layer_draws_no_plants() {
         layers: [("test".to_owned(), Style { visible: false, ..Style::default() })].into(),
     };
     let bare = Renderer::new(gpu(), &trees_on_a_plain(&[])).unwrap();
-    let without_plants = bare.render(&camera, Style::default(), 160, 120).unwrap();
-    assert_eq!(renderer.render(&camera, &hidden, 160, 120).unwrap(), without_plants);
-    assert_ne!(renderer.render(&camera, Style::default(), 160, 120).unwrap(), without_plants);
+    let without_plants = bare.render(FrameRequest::new(&camera, Style::default(), 160, 120)).map(|f| f.image).unwrap();
+    assert_eq!(
+        renderer.render(FrameRequest::new(&camera, &hidden, 160, 120)).map(|f| f.image).unwrap(),
+        without_plants
+    );
+    assert_ne!(
+        renderer.render(FrameRequest::new(&camera, Style::default(), 160, 120)).map(|f| f.image).unwrap(),
+        without_plants
+    );
 }
 
 /// Frames whose slots all share one style are drawn with post-pass pipelines specialised for
@@ -293,8 +325,13 @@ fn specialised_pipelines_draw_what_the_general_ones_draw() {
         let base = preset.style().unwrap();
         let terrain = Style { sky_zenith: [1.0, 0.0, 0.0], sky_horizon: [0.0, 1.0, 0.0], ..base.clone() };
         let general = FrameStyle { base: base.clone(), layers: [(TERRAIN_LAYER.to_owned(), terrain)].into() };
-        let specialised = renderer.render(&camera, &base, 160, 120).unwrap();
-        assert_eq!(specialised, renderer.render(&camera, &general, 160, 120).unwrap(), "{}", preset.name);
+        let specialised = renderer.render(FrameRequest::new(&camera, &base, 160, 120)).map(|f| f.image).unwrap();
+        assert_eq!(
+            specialised,
+            renderer.render(FrameRequest::new(&camera, &general, 160, 120)).map(|f| f.image).unwrap(),
+            "{}",
+            preset.name
+        );
         assert!(fraction(&specialised, |l| l < 0.5) > 0.01, "{} draws ink", preset.name);
     }
 }
@@ -344,7 +381,7 @@ fn implicit_surface_illumination_smooths_and_darkens_the_crown() {
     let row = |base: &Style| {
         [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)].map(|(implicit_normals, ambient_occlusion)| {
             let style = Style { implicit_normals, ambient_occlusion, ..base.clone() };
-            renderer.render(&camera, &style, SIZE.0, SIZE.1).unwrap()
+            renderer.render(FrameRequest::new(&camera, &style, SIZE.0, SIZE.1)).map(|f| f.image).unwrap()
         })
     };
     let (colours, inks) = (row(&colour), row(&ink));

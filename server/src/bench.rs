@@ -5,8 +5,7 @@
 //! RSS and an estimate of GPU memory. No figure here is asserted anywhere; it is measured.
 
 use crate::prep::cache::DiskCache;
-use crate::render::projection::DataView;
-use crate::render::{Gpu, RenderError, RenderOptions, Renderer, Style};
+use crate::render::{FrameRequest, Gpu, RenderError, RenderOptions, Renderer, Style};
 use crate::scene::camera::Camera;
 use crate::scene::config::SceneConfig;
 use crate::scene::{Scene, SceneError};
@@ -209,28 +208,29 @@ fn run_style(
 ) -> Result<StyleRun, BenchError> {
     let (w, h) = (options.width, options.height);
     // Warm-up: pipelines, first-use allocations.
-    renderer.render(&cameras[0], style, w, h)?;
+    renderer.render(FrameRequest::new(&cameras[0], style, w, h))?;
     // The walk is rendered as a session would: the hatching follows the camera (eq. 6.2).
     let mut state = renderer.new_view_state();
     let mut frames = Vec::with_capacity(cameras.len());
     for camera in cameras {
         let started = Instant::now();
-        let frame = renderer.render_view(&mut state, camera, style, w, h, &DataView::default(), false)?;
+        let frame = renderer.render(FrameRequest::new(camera, style, w, h).history(&mut state))?;
         encode_jpeg(&frame.image)?;
         frames.push(started.elapsed().as_secs_f64() * 1e3);
     }
     let mut state = renderer.new_view_state();
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     for camera in cameras {
-        let (image, timings) = renderer.render_profiled(Some(&mut state), camera, style, w, h)?;
-        for (pass, ms) in timings {
+        let frame = renderer.render(FrameRequest::new(camera, style, w, h).history(&mut state).profiled())?;
+        let image = frame.image;
+        for (pass, ms) in frame.times.unwrap_or_default() {
             passes.entry(pass.to_owned()).or_default().push(ms);
         }
         let started = Instant::now();
         encode_jpeg(&image)?;
         passes.entry("encode".into()).or_default().push(started.elapsed().as_secs_f64() * 1e3);
     }
-    let stats = renderer.draw_stats(&cameras[cameras.len() / 2], w, h);
+    let stats = renderer.draw_stats(&FrameRequest::new(&cameras[cameras.len() / 2], &Style::default(), w, h))?;
     let frame_ms = Stat::of(&frames);
     Ok(StyleRun {
         style: name.to_owned(),
@@ -279,7 +279,9 @@ pub fn run(
         }
         scenes.push(SceneRun {
             plants: scene.plant_count(),
-            source_triangles: renderer.draw_stats(&cameras[0], options.width, options.height).source_triangles,
+            source_triangles: renderer
+                .draw_stats(&FrameRequest::new(&cameras[0], &Style::default(), options.width, options.height))?
+                .source_triangles,
             prep_ms,
             cache_hits: after.hits - before.hits,
             cache_misses: after.misses - before.misses,

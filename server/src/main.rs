@@ -12,7 +12,7 @@ use landsketch::prep::cache::DiskCache;
 use landsketch::render::presets::PRESETS;
 use landsketch::render::projection::DataView;
 use landsketch::render::style::FrameStyle;
-use landsketch::render::{Gpu, RenderOptions, Renderer, Style};
+use landsketch::render::{FrameRequest, Gpu, RenderOptions, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
 use landsketch::store::Store;
@@ -445,8 +445,8 @@ fn render(args: &RenderArgs) -> Result<()> {
     let renderer = Renderer::with_options(gpu, &scene, &args.cache.render_options()?)?;
     let started = std::time::Instant::now();
     let data = data_view(args)?;
-    let image = renderer.render_with_data(&camera, &style, args.width, args.height, &data)?;
-    let stats = renderer.draw_stats(&camera, args.width, args.height);
+    let frame = renderer.render(FrameRequest::new(&camera, &style, args.width, args.height).data(&data))?;
+    let (image, stats) = (frame.image, frame.stats);
     info!(
         ms = started.elapsed().as_millis() as u64,
         triangles = stats.triangles,

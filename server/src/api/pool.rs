@@ -7,6 +7,7 @@
 use super::data::LayerCache;
 use super::metrics::{KindLabels, Metrics};
 use super::view::ViewRequest;
+use crate::render::FrameRequest;
 use crate::render::art_textures::{ArtKind, ArtMap, ArtMapSet};
 use crate::render::renderer::ViewState;
 use crate::render::{Gpu, RenderError, RenderOptions, Renderer};
@@ -353,13 +354,12 @@ fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handl
         let rendered = std::panic::catch_unwind(AssertUnwindSafe(|| {
             let data = layers.view(&view.data, store)?;
             let (camera, style, width, height) = (&view.camera, view.frame_style(), view.width, view.height);
-            match session {
-                Some(id) => {
-                    let state = views.entry(id).or_insert_with(|| renderer.new_view_state());
-                    renderer.render_view(state, camera, style, width, height, &data, false).map(|f| f.image)
-                }
-                None => renderer.render_with_data(camera, style, width, height, &data),
-            }
+            let request = FrameRequest::new(camera, style, width, height).data(&data);
+            let request = match session {
+                Some(id) => request.history(views.entry(id).or_insert_with(|| renderer.new_view_state())),
+                None => request,
+            };
+            renderer.render(request).map(|frame| frame.image)
         }));
         let elapsed = started.elapsed();
         let render_ms = elapsed.as_secs_f32() * 1e3;

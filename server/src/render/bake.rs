@@ -38,7 +38,14 @@ impl Baker {
     pub fn new(device: &wgpu::Device, material_layout: &wgpu::BindGroupLayout) -> Baker {
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("bake.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/bake.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                format!(
+                    "{}{}",
+                    super::uniforms::Declarations::of::<super::gbuffer::SurfaceMaterial>(),
+                    include_str!("../../../shaders/bake.wgsl")
+                )
+                .into(),
+            ),
         });
         let tiles_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("bake tiles"),

@@ -5,7 +5,7 @@
 
 use super::RenderError;
 use super::gbuffer::BACKGROUND_DEPTH;
-use super::renderer::{FrameWithDepth, Renderer};
+use super::renderer::{FrameRequest, Readback, Renderer};
 use super::style::Style;
 use crate::scene::camera::Camera;
 use glam::{Vec3, Vec4};
@@ -72,17 +72,17 @@ fn project(camera: &Camera, p: Vec3, width: u32, height: u32) -> Option<(f32, f3
 /// Mean absolute luminance difference between `current` and `previous` after reprojecting each
 /// of the current frame's geometry pixels into the previous frame; pixels that were hidden or
 /// outside the previous frame (depth mismatch over 2 %) are skipped. Returns the mean and the
-/// number of pixels compared.
+/// number of pixels compared. Each frame is its camera, image and linear depth.
 pub fn compensated_difference(
-    previous: (&Camera, &FrameWithDepth),
-    current: (&Camera, &FrameWithDepth),
+    previous: (&Camera, &image::RgbaImage, &[f32]),
+    current: (&Camera, &image::RgbaImage, &[f32]),
 ) -> (f64, usize) {
-    let (w, h) = current.1.image.dimensions();
+    let (w, h) = current.1.dimensions();
     let mut sum = 0.0;
     let mut count = 0usize;
     for y in 0..h {
         for x in 0..w {
-            let depth = current.1.depth[(y * w + x) as usize];
+            let depth = current.2[(y * w + x) as usize];
             if f64::from(depth) >= BACKGROUND_DEPTH * 0.5 {
                 continue;
             }
@@ -93,12 +93,12 @@ pub fn compensated_difference(
                 continue;
             }
             let (qx, qy) = (qx as u32, qy as u32);
-            let previous_depth = previous.1.depth[(qy * w + qx) as usize];
+            let previous_depth = previous.2[(qy * w + qx) as usize];
             if (previous_depth - pd).abs() > 0.02 * pd {
                 continue;
             }
-            let a = luminance(current.1.image.get_pixel(x, y));
-            let b = luminance(previous.1.image.get_pixel(qx, qy));
+            let a = luminance(current.1.get_pixel(x, y));
+            let b = luminance(previous.1.get_pixel(qx, qy));
             sum += f64::from((a - b).abs());
             count += 1;
         }
@@ -117,19 +117,22 @@ pub fn flicker(
     height: u32,
 ) -> Result<f64, RenderError> {
     let mut state = renderer.new_view_state();
-    let mut previous: Option<(Camera, FrameWithDepth)> = None;
+    let mut previous: Option<(Camera, image::RgbaImage, Vec<f32>)> = None;
     let mut total = 0.0;
     let mut pairs = 0usize;
     for camera in path {
-        let frame = renderer.render_view(&mut state, camera, style, width, height, &Default::default(), true)?;
-        if let Some((prev_cam, prev_frame)) = &previous {
-            let (diff, count) = compensated_difference((prev_cam, prev_frame), (camera, &frame));
+        let request = FrameRequest::new(camera, style, width, height).history(&mut state);
+        let frame = renderer.render(request.read(Readback::DEPTH))?;
+        let depth = frame.depth.unwrap_or_default();
+        if let Some((prev_cam, prev_image, prev_depth)) = &previous {
+            let (diff, count) =
+                compensated_difference((prev_cam, prev_image, prev_depth), (camera, &frame.image, &depth));
             if count > 0 {
                 total += diff;
                 pairs += 1;
             }
         }
-        previous = Some((*camera, frame));
+        previous = Some((*camera, frame.image, depth));
     }
     Ok(if pairs == 0 { 0.0 } else { total / pairs as f64 })
 }

@@ -1,6 +1,7 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
 use super::style::{HatchSpace, STYLE_SLOTS, Style};
+use super::uniforms::{self, Declarations, Mat4f, Vec2f, Vec3f, Vec4f, Wgsl, gpu_block};
 use crate::prep::hlp::Sphere;
 use crate::prep::leaves::{CORNERS, Leaf};
 use crate::scene::camera::Camera;
@@ -91,79 +92,123 @@ impl GBuffer {
     }
 }
 
-/// Per-frame uniforms of the geometry pass (`Frame` in `shaders/gbuffer.wgsl`).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-pub struct FrameUniform {
-    view_proj: [[f32; 4]; 4],
-    view: [[f32; 4]; 4],
-    camera_pos: [f32; 4],
-    viewport: [f32; 4],
-    roll: [f32; 4],
+gpu_block! {
+    /// Per-frame uniforms of the geometry pass (`frame` in `shaders/gbuffer.wgsl`).
+    pub struct GeometryFrame {
+        /// World → clip.
+        pub view_proj: Mat4f,
+        /// World → view.
+        pub view: Mat4f,
+        /// Camera position (world).
+        pub camera_pos: Vec3f,
+        /// tan(fov/2).
+        pub tan_half_fov: f32,
+        /// Image width in pixels.
+        pub width: f32,
+        /// Image height in pixels.
+        pub height: f32,
+        /// Metres per pixel of a plan view (orthographic; 0 in perspective).
+        pub plan_metres_per_pixel: f32,
+        /// cos and sin of −roll (the hatch coordinates turn against the camera roll).
+        pub roll: Vec2f,
+    }
 }
 
-/// Bytes between the style slots' [`LayerUniform`]s in the layer buffer: each draw binds its
+/// Bytes between the style slots' [`LayerStyle`]s in the layer buffer: each draw binds its
 /// slot's block at a dynamic offset, which must be a multiple of the device's uniform offset
 /// alignment (256 at most by the WebGPU limits).
 pub const LAYER_STRIDE: u64 = 256;
 
-/// The [`LayerUniform`] of every style slot at [`LAYER_STRIDE`] (see
+/// The [`LayerStyle`] of every style slot at [`LAYER_STRIDE`] (see
 /// [`super::style::FrameStyle::slots`]); slots beyond `slots` take the default style.
 pub fn layer_uniforms(slots: &[Style]) -> Vec<u8> {
     let mut bytes = vec![0u8; STYLE_SLOTS * LAYER_STRIDE as usize];
     let default = Style::default();
     for (slot, chunk) in bytes.chunks_exact_mut(LAYER_STRIDE as usize).enumerate() {
-        let layer = LayerUniform::new(slots.get(slot).unwrap_or(&default));
-        chunk[..std::mem::size_of::<LayerUniform>()].copy_from_slice(bytemuck::bytes_of(&layer));
+        let layer = uniforms::bytes(&LayerStyle::new(slots.get(slot).unwrap_or(&default)));
+        chunk[..layer.len()].copy_from_slice(&layer);
     }
     bytes
 }
 
-/// The geometry-pass parameters of one style slot (`LayerStyle` in `shaders/gbuffer.wgsl`).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-pub struct LayerUniform {
-    hlp: [f32; 4],
-    hatch: [f32; 4],
-    /// Leaves: mode ([`super::style::LeafMode`] as 0–3), size, shape (α_t from α_max to
-    /// α_min) and outline Δα (thesis eq. 4.1).
-    leaf: [f32; 4],
-    /// Implicit-surface illumination (Luft et al. 2007): x blend towards the implicit normal,
-    /// y ambient occlusion (how much k_a darkens the ambient light).
-    implicit: [f32; 4],
+gpu_block! {
+    /// The geometry-pass parameters of one style slot (`layer` in `shaders/gbuffer.wgsl`).
+    pub struct LayerStyle {
+        /// Blend of the normal towards the HLP normal.
+        pub normal_blend: f32,
+        /// 1: hatch coordinates in image space, 0: hybrid.
+        pub image_space: u32,
+        /// HLP abstraction 1 − f (thesis eq. 4.8).
+        pub hlp_abstraction: f32,
+        /// Colour abstraction: texture → average material colour (thesis 6.2).
+        pub color_abstraction: f32,
+        /// TAM tiles per π (m = n).
+        pub hatch_tiles: f32,
+        /// Surface function c (eq. 6.6).
+        pub hatch_surface: f32,
+        /// Image-space tile size in pixels.
+        pub image_hatch_scale: f32,
+        /// Leaf mode ([`super::style::LeafMode`]: 0 original, 1 billboard, 2 reoriented,
+        /// 3 elliptical).
+        pub leaf_mode: u32,
+        /// Leaf size.
+        pub leaf_size: f32,
+        /// Leaf shape: α_t from α_max to α_min (thesis 4.1).
+        pub leaf_shape: f32,
+        /// Leaf outline Δα (eq. 4.1).
+        pub leaf_outline: f32,
+        /// Blend towards the implicit-surface normal (Luft et al. 2007 §3.3).
+        pub implicit_normals: f32,
+        /// How much k_a of the implicit surface (eq. 4) darkens the ambient light.
+        pub ambient_occlusion: f32,
+    }
 }
 
-impl LayerUniform {
-    /// Packs the geometry-stage fields of a resolved `style`.
-    pub fn new(style: &Style) -> LayerUniform {
-        let image_space = f32::from(u8::from(style.hatch_space == HatchSpace::Image));
-        LayerUniform {
-            hlp: [style.normal_blend, image_space, style.hlp_abstraction, style.color_abstraction],
-            hatch: [style.hatch_tiles, style.hatch_surface, 0.0, style.image_hatch_scale],
-            leaf: [style.leaf_mode as u32 as f32, style.leaf_size, style.leaf_shape, style.leaf_outline],
-            implicit: [style.implicit_normals, style.ambient_occlusion, 0.0, 0.0],
+impl LayerStyle {
+    /// The geometry-stage fields of a resolved `style`.
+    pub fn new(style: &Style) -> LayerStyle {
+        LayerStyle {
+            normal_blend: style.normal_blend,
+            image_space: u32::from(style.hatch_space == HatchSpace::Image),
+            hlp_abstraction: style.hlp_abstraction,
+            color_abstraction: style.color_abstraction,
+            hatch_tiles: style.hatch_tiles,
+            hatch_surface: style.hatch_surface,
+            image_hatch_scale: style.image_hatch_scale,
+            leaf_mode: style.leaf_mode as u32,
+            leaf_size: style.leaf_size,
+            leaf_shape: style.leaf_shape,
+            leaf_outline: style.leaf_outline,
+            implicit_normals: style.implicit_normals,
+            ambient_occlusion: style.ambient_occlusion,
         }
     }
 }
 
-impl FrameUniform {
+impl GeometryFrame {
     /// The uniforms for `camera` rendering a `width` × `height` image.
-    pub fn new(camera: &Camera, width: u32, height: u32) -> FrameUniform {
+    pub fn new(camera: &Camera, width: u32, height: u32) -> GeometryFrame {
         let view = camera.view();
-        let p = camera.position;
         let roll = -camera.roll.to_radians();
-        FrameUniform {
-            view_proj: (camera.projection(width as f32 / height as f32) * view).to_cols_array_2d(),
-            view: view.to_cols_array_2d(),
-            camera_pos: [p[0], p[1], p[2], 1.0],
-            viewport: [
-                (camera.fov.to_radians() * 0.5).tan(),
-                height as f32,
-                width as f32,
-                camera.plan_metres_per_pixel(width).unwrap_or(0.0),
-            ],
-            roll: [roll.cos(), roll.sin(), 0.0, 0.0],
+        GeometryFrame {
+            view_proj: (camera.projection(width as f32 / height as f32) * view).into(),
+            view: view.into(),
+            camera_pos: Vec3f(camera.position),
+            tan_half_fov: (camera.fov.to_radians() * 0.5).tan(),
+            width: width as f32,
+            height: height as f32,
+            plan_metres_per_pixel: camera.plan_metres_per_pixel(width).unwrap_or(0.0),
+            roll: Vec2f([roll.cos(), roll.sin()]),
         }
+    }
+
+    /// The WGSL declarations of the geometry-stage blocks (prefixing `shaders/gbuffer.wgsl`).
+    pub fn declarations() -> String {
+        let mut declarations = Declarations::default();
+        for declare in [GeometryFrame::declare, LayerStyle::declare, SurfaceMaterial::declare] {
+            declare(&mut declarations);
+        }
+        declarations.into_text()
     }
 }
 
@@ -184,19 +229,37 @@ impl Surface {
     pub const ALL: [Surface; 4] = [Surface::Terrain, Surface::Wood, Surface::Foliage, Surface::Billboard];
 }
 
-/// Per-material uniforms (`Material` in `shaders/gbuffer.wgsl`).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-pub struct MaterialUniform {
-    pub base_color: [f32; 4],
-    /// x: alpha cutoff (negative: opaque; for foliage α_max of thesis 4.1), y: unused (the
-    /// pipeline's [`Surface`] tells the kind), z: α_min, the alpha threshold of the most
-    /// abstract leaf shape (foliage; the cutoff elsewhere), w: scale of leaf particles drawn
-    /// as a share of the leaves (√(all / drawn), SPEC P4; 1 elsewhere).
-    pub params: [f32; 4],
-    /// The material's average colour, linear RGB (abstract colour, thesis 6.2; see
-    /// [`average_color`]).
-    pub average_color: [f32; 4],
+gpu_block! {
+    /// Per-material uniforms (`material` in `shaders/gbuffer.wgsl` and `shaders/bake.wgsl`).
+    pub struct SurfaceMaterial {
+        /// Base colour (linear RGBA), multiplied with the texture.
+        pub base_color: Vec4f,
+        /// Alpha cutoff: negative for opaque surfaces; α_max of thesis 4.1 for foliage.
+        pub alpha_cutoff: f32,
+        /// α_min, the alpha threshold of the most abstract leaf shape (foliage; the cutoff
+        /// elsewhere).
+        pub alpha_min: f32,
+        /// Scale of leaf particles drawn as a share of the leaves (√(all / drawn), SPEC P4; 1
+        /// elsewhere).
+        pub particle_scale: f32,
+        /// The material's average colour, linear RGB (abstract colour, thesis 6.2; see
+        /// [`average_color`]).
+        pub average_color: Vec3f,
+    }
+}
+
+impl SurfaceMaterial {
+    /// The block of `material` with its alpha thresholds and leaf-particle scale.
+    pub fn new(material: &crate::scene::plant::Material, cutoff: f32, alpha_min: f32, particle_scale: f32) -> Self {
+        let [r, g, b, _] = average_color(material);
+        SurfaceMaterial {
+            base_color: Vec4f(material.base_color),
+            alpha_cutoff: cutoff,
+            alpha_min,
+            particle_scale,
+            average_color: Vec3f([r, g, b]),
+        }
+    }
 }
 
 /// The average colour of a material, linear RGB: the base colour times the mean of its
@@ -345,7 +408,7 @@ fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGrou
     }
 }
 
-/// A bind group layout entry for the [`LayerUniform`] of one style slot, bound per draw at a
+/// A bind group layout entry for the [`LayerStyle`] of one style slot, bound per draw at a
 /// dynamic offset into the layer buffer (see [`layer_uniforms`]).
 fn layer_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -354,7 +417,7 @@ fn layer_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
         ty: wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Uniform,
             has_dynamic_offset: true,
-            min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<LayerUniform>() as u64),
+            min_binding_size: wgpu::BufferSize::new(uniforms::size_of::<LayerStyle>()),
         },
         count: None,
     }
@@ -398,7 +461,9 @@ impl GeometryPass {
     pub fn new(device: &wgpu::Device) -> GeometryPass {
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("gbuffer.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/gbuffer.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                format!("{}{}", GeometryFrame::declarations(), include_str!("../../../shaders/gbuffer.wgsl")).into(),
+            ),
         });
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame"),

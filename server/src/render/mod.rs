@@ -9,7 +9,7 @@ pub mod coherence;
 pub mod device;
 pub mod gbuffer;
 pub mod parametrization;
-pub mod post;
+pub mod passes;
 pub mod presets;
 pub mod profile;
 pub mod projection;
@@ -17,9 +17,10 @@ mod readback;
 pub mod renderer;
 pub mod scene_gpu;
 pub mod style;
+pub mod uniforms;
 
 pub use device::Gpu;
-pub use renderer::{RenderOptions, Renderer};
+pub use renderer::{Frame, FrameRequest, Readback, RenderOptions, Renderer};
 pub use style::Style;
 
 /// Errors raised while setting up the GPU or rendering a frame.

@@ -14,12 +14,12 @@
 //! reuse it, so moving the camera or the time between steps costs no upload. Scalars are
 //! sampled bilinearly, labels at the nearest cell (with `textureLoad`).
 
-use super::post::{FullscreenPass, Input, PostPass};
+use super::passes::Resource;
+use super::uniforms::{self, Mat4f, Vec2f, Vec3f, Vec4f, gpu_block};
 use super::{Gpu, RenderError};
 use crate::fields::{Field, FieldGrid, FieldKind, Lut, MAX_MAPPINGS, Mapping, MappingTarget, SceneGeo};
 use crate::scene::Scene;
 use crate::scene::camera::Camera;
-use bytemuck::{Pod, Zeroable};
 use chrono::{DateTime, Utc};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -72,17 +72,17 @@ impl DataView {
     }
 }
 
-/// Code of a target in the shader (`Slot.params.x`); 0 for abstraction, which the geometry
-/// stage draws (see [`ProjectionPass::plant_abstraction`]).
-fn feature_code(target: MappingTarget) -> f32 {
+/// Code of a target in the shader ([`DataSlot::feature`]); 0 for abstraction, which the
+/// geometry stage draws (see [`ProjectionPass::plant_abstraction`]).
+fn feature_code(target: MappingTarget) -> u32 {
     match target {
-        MappingTarget::Abstraction => 0.0,
-        MappingTarget::Color => 1.0,
-        MappingTarget::HatchTone => 2.0,
-        MappingTarget::HatchPattern => 3.0,
-        MappingTarget::SilhouetteStyle => 4.0,
-        MappingTarget::SilhouetteDensity => 5.0,
-        MappingTarget::HatchColor => 6.0,
+        MappingTarget::Abstraction => 0,
+        MappingTarget::Color => 1,
+        MappingTarget::HatchTone => 2,
+        MappingTarget::HatchPattern => 3,
+        MappingTarget::SilhouetteStyle => 4,
+        MappingTarget::SilhouetteDensity => 5,
+        MappingTarget::HatchColor => 6,
     }
 }
 
@@ -125,55 +125,85 @@ impl PlantAbstraction {
     }
 }
 
-/// `Slot` in `shaders/data.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default, Pod, Zeroable)]
-struct Slot {
-    uv: [f32; 4],
-    params: [f32; 4],
-    range: [f32; 4],
+gpu_block! {
+    /// One mapping slot of the projection pass (`data.slots[i]` in `shaders/data.wgsl`).
+    pub struct DataSlot {
+        /// u = a·x + b, v = c·y + d: scene metres → field texture (a, b, c, d;
+        /// [`FieldGrid::uv_transform`]).
+        pub uv: Vec4f,
+        /// The target feature ([`feature_code`]; 0: none).
+        pub feature: u32,
+        /// 1 for a label field, 0 for a scalar field.
+        pub label: u32,
+        /// u_t of eq. 9.4 between the two bracketing steps.
+        pub time_weight: f32,
+        /// Opacity of the mapping.
+        pub opacity: f32,
+        /// Value at the low end of the range (scalars).
+        pub range_low: f32,
+        /// Value at the high end of the range (scalars).
+        pub range_high: f32,
+        /// Number of label classes.
+        pub classes: f32,
+        /// 1 when the mapping runs reversed.
+        pub reverse: u32,
+    }
 }
 
-/// `Data` in `shaders/data.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct DataUniform {
-    inv_view_proj: [[f32; 4]; 4],
-    depth_to_clip: [f32; 4],
-    info: [f32; 4],
-    slots: [Slot; MAX_MAPPINGS],
+gpu_block! {
+    /// The projection pass's block (`data` in `shaders/data.wgsl`).
+    pub struct DataBlock {
+        /// Clip space → world.
+        pub inv_view_proj: Mat4f,
+        /// The projection's z and w rows at view (0, 0, −d, 1): z_clip = x·d + y,
+        /// w_clip = z·d + w.
+        pub depth_to_clip: Vec4f,
+        /// Image width in pixels.
+        pub width: f32,
+        /// Image height in pixels.
+        pub height: f32,
+        /// Number of TAMs (hatch-pattern mappings pick one by label).
+        pub tams: u32,
+        /// The mapping slots.
+        pub slots: [DataSlot; MAX_MAPPINGS],
+    }
 }
 
-/// `HatchColor` in `shaders/data_common.wgsl`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default, Pod, Zeroable)]
-struct HatchColorSlot {
-    /// Ink (sRGB) and opacity; opacity 0 where the slot is no hatch colour.
-    color: [f32; 4],
-    /// cos and sin of the rotation of the hatch coordinates.
-    rotation: [f32; 4],
+gpu_block! {
+    /// Thesis 9.2.2, Fig. 9.3: one hatch-colour slot of the compose pass (the mapping at that
+    /// position of the view).
+    pub struct HatchColor {
+        /// Ink colour (sRGB).
+        pub color: Vec3f,
+        /// Opacity; 0 where the slot draws no coloured hatching.
+        pub opacity: f32,
+        /// cos and sin of the rotation of the hatch texture coordinates, which gives the
+        /// slot's strokes their own direction.
+        pub rotation: Vec2f,
+    }
 }
 
-/// `HatchColors` in `shaders/data_common.wgsl`: the compose pass's hatch-colour slots.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default, Pod, Zeroable)]
-struct HatchColorsUniform {
-    slots: [HatchColorSlot; MAX_MAPPINGS],
+gpu_block! {
+    /// The compose pass's hatch-colour slots (`hatch_colors` in `shaders/data_common.wgsl`).
+    pub struct HatchColors {
+        /// One per mapping slot.
+        pub slots: [HatchColor; MAX_MAPPINGS],
+    }
 }
 
-impl HatchColorsUniform {
+impl HatchColors {
     /// The ink, opacity and stroke direction of every hatch-colour mapping of `data`, in its slot.
-    fn new(data: &DataView) -> HatchColorsUniform {
-        let mut uniform = HatchColorsUniform::default();
-        for (i, (slot, m)) in uniform.slots.iter_mut().zip(&data.mappings).enumerate() {
+    fn new(data: &DataView) -> HatchColors {
+        let mut block = HatchColors::default();
+        for (i, (slot, m)) in block.slots.iter_mut().zip(&data.mappings).enumerate() {
             let (sin, cos) = HATCH_COLOR_ANGLES[i].to_radians().sin_cos();
-            slot.rotation = [cos, sin, 0.0, 0.0];
+            slot.rotation = Vec2f([cos, sin]);
             if m.mapping.target == MappingTarget::HatchColor {
-                let [r, g, b] = m.mapping.hatch_color(i);
-                slot.color = [r, g, b, m.mapping.opacity];
+                slot.color = Vec3f(m.mapping.hatch_color(i));
+                slot.opacity = m.mapping.opacity;
             }
         }
-        uniform
+        block
     }
 }
 
@@ -184,9 +214,9 @@ struct StepTexture {
     uv: [f32; 4],
 }
 
-/// The projection pass, its cache of field textures and the scene's geography.
+/// The projection pass's data (its shader is the declared [`super::passes::DATA`]): the cache
+/// of field textures and the scene's geography.
 pub struct ProjectionPass {
-    pass: FullscreenPass,
     scene: Result<SceneGeo, String>,
     steps: Mutex<HashMap<(String, usize), Arc<StepTexture>>>,
     grids: Mutex<HashMap<(String, usize), Arc<FieldGrid>>>,
@@ -195,25 +225,26 @@ pub struct ProjectionPass {
     hatch_colors: wgpu::Buffer,
 }
 
-/// The pass's inputs for one frame.
+/// What the pass needs of a frame besides its data.
 pub struct DataInputs<'a> {
     /// The camera of the frame.
     pub camera: &'a Camera,
-    /// Image size in pixels.
+    /// Image width in pixels.
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
-    /// The style's TAM index (where no hatch-pattern mapping applies) and the number of TAMs.
-    pub tams: (usize, usize),
-    /// Whether style layers use TAMs other than `tams.0` (thesis 8.2.8): then the pass runs
-    /// even without mappings, so every pixel gets the TAM of its layer's style.
+    /// The number of TAMs.
+    pub tams: usize,
+    /// Whether style layers use TAMs other than the base style's (thesis 8.2.8): then the
+    /// pass runs even without mappings, so every pixel gets the TAM of its layer's style.
     pub layer_tams: bool,
-    /// The post uniform buffer (binding 0 of every post pass).
-    pub post: &'a wgpu::Buffer,
-    /// Linear depth of the G-buffer.
-    pub depth: &'a wgpu::TextureView,
-    /// Object IDs of the G-buffer.
-    pub ids: &'a wgpu::TextureView,
+}
+
+/// The projection of one frame: the pass's block and each mapping's step textures and colour
+/// table, bound by [`ProjectionPass::resource`].
+pub struct DataFrame {
+    block: wgpu::Buffer,
+    fields: Vec<(Arc<StepTexture>, Arc<StepTexture>, wgpu::TextureView)>,
 }
 
 fn texture_2d(
@@ -244,17 +275,7 @@ fn texture_2d(
 impl ProjectionPass {
     /// Compiles the pass for `scene` (whose DEM gives the geography fields are resampled to).
     pub fn new(gpu: &Gpu, scene: &Scene) -> ProjectionPass {
-        use Input::*;
-        let inputs = [Uniform, Float, Uint, Float, Float, Float, Float, Float, Float, Float, Float, Float];
         ProjectionPass {
-            pass: FullscreenPass::new(
-                &gpu.device,
-                "data",
-                include_str!("../../../shaders/data.wgsl"),
-                "fs_data",
-                &inputs,
-                DATA_FORMAT,
-            ),
             scene: SceneGeo::from_terrain(&scene.terrain).map_err(|e| e.to_string()),
             steps: Mutex::default(),
             grids: Mutex::default(),
@@ -262,16 +283,16 @@ impl ProjectionPass {
             empty_lut: texture_2d(gpu, "no colours", wgpu::TextureFormat::Rgba8Unorm, (1, 1), &[0; 4]),
             hatch_colors: gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("hatch colours"),
-                size: std::mem::size_of::<HatchColorsUniform>() as u64,
+                size: uniforms::size_of::<HatchColors>(),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
         }
     }
 
-    /// The compose pass's uniform of the hatch-colour slots (`HatchColors` in
-    /// `shaders/data_common.wgsl`): ink, opacity and stroke direction per slot, written by
-    /// [`ProjectionPass::encode`] for the frame it records (frames of a renderer are serialised).
+    /// The compose pass's uniform of the hatch-colour slots ([`HatchColors`]): ink, opacity
+    /// and stroke direction per slot, written by [`ProjectionPass::prepare`] for the frame it
+    /// prepares (frames of a renderer are serialised).
     pub fn hatch_colors(&self) -> &wgpu::Buffer {
         &self.hatch_colors
     }
@@ -374,24 +395,22 @@ impl ProjectionPass {
         !data.mappings.is_empty() || layer_tams
     }
 
-    /// Records the pass into `encoder`, writing `target` with the projected `data` and the
-    /// hatch-colour slots of `data` into [`ProjectionPass::hatch_colors`]; records nothing when
-    /// it [`writes`](ProjectionPass::writes) nothing.
-    pub fn encode(
+    /// Prepares the pass for a frame: writes the hatch-colour slots of `data` into
+    /// [`ProjectionPass::hatch_colors`] and returns the block and field textures to bind, or
+    /// `None` when the pass [`writes`](ProjectionPass::writes) nothing.
+    pub fn prepare(
         &self,
         gpu: &Gpu,
-        encoder: &mut wgpu::CommandEncoder,
-        target: &wgpu::TextureView,
         inputs: &DataInputs<'_>,
         data: &DataView,
-    ) -> Result<(), RenderError> {
+    ) -> Result<Option<DataFrame>, RenderError> {
         if !Self::writes(data, inputs.layer_tams) {
-            return Ok(());
+            return Ok(None);
         }
         Self::check(data)?;
-        gpu.queue.write_buffer(&self.hatch_colors, 0, bytemuck::bytes_of(&HatchColorsUniform::new(data)));
-        let mut slots = [Slot::default(); MAX_MAPPINGS];
-        let mut textures = Vec::new();
+        gpu.queue.write_buffer(&self.hatch_colors, 0, &uniforms::bytes(&HatchColors::new(data)));
+        let mut slots = [DataSlot::default(); MAX_MAPPINGS];
+        let mut fields = Vec::new();
         for (i, (slot, m)) in slots.iter_mut().zip(&data.mappings).enumerate() {
             let field = &m.layer.field;
             let sample = field.time_sample(data.time);
@@ -399,16 +418,16 @@ impl ProjectionPass {
             let upper = self.step_texture(gpu, &m.layer, sample.upper)?;
             let lut = Lut::for_field(&m.mapping.color_spec(i), field).map_err(|e| RenderError::Data(e.to_string()))?;
             let [lo, hi] = lut.range.unwrap_or([0.0, 1.0]);
-            let label = field.kind() == FieldKind::Label;
-            *slot = Slot {
-                uv: lower.uv,
-                params: [
-                    feature_code(m.mapping.target),
-                    f32::from(u8::from(label)),
-                    sample.weight as f32,
-                    m.mapping.opacity,
-                ],
-                range: [lo as f32, hi as f32, field.classes().len() as f32, f32::from(u8::from(m.mapping.reverse))],
+            *slot = DataSlot {
+                uv: Vec4f(lower.uv),
+                feature: feature_code(m.mapping.target),
+                label: u32::from(field.kind() == FieldKind::Label),
+                time_weight: sample.weight as f32,
+                opacity: m.mapping.opacity,
+                range_low: lo as f32,
+                range_high: hi as f32,
+                classes: field.classes().len() as f32,
+                reverse: u32::from(m.mapping.reverse),
             };
             let lut_view = texture_2d(
                 gpu,
@@ -417,31 +436,38 @@ impl ProjectionPass {
                 (lut.colors.len() as u32, 1),
                 &lut.to_rgba_bytes(),
             );
-            textures.push((lower, upper, lut_view));
+            fields.push((lower, upper, lut_view));
         }
         let projection = inputs.camera.projection(inputs.width as f32 / inputs.height as f32);
         let (z, w) = (projection.z_axis, projection.w_axis);
-        let uniform = DataUniform {
-            inv_view_proj: (projection * inputs.camera.view()).inverse().to_cols_array_2d(),
-            depth_to_clip: [-z.z, w.z, -z.w, w.w],
-            info: [inputs.width as f32, inputs.height as f32, inputs.tams.0 as f32, inputs.tams.1 as f32],
+        let block = DataBlock {
+            inv_view_proj: Mat4f::from((projection * inputs.camera.view()).inverse()),
+            depth_to_clip: Vec4f([-z.z, w.z, -z.w, w.w]),
+            width: inputs.width as f32,
+            height: inputs.height as f32,
+            tams: inputs.tams as u32,
             slots,
         };
-        let buffer = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let block = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("data"),
-            contents: bytemuck::bytes_of(&uniform),
+            contents: &uniforms::bytes(&block),
             usage: wgpu::BufferUsages::UNIFORM,
         });
+        Ok(Some(DataFrame { block, fields }))
+    }
+
+    /// What the pass binds for `resource` ([`Resource::DataBlock`] and the field resources) in
+    /// the frame prepared as `frame`: mapping slots without a field read an empty grid and
+    /// colour table. `None` for other resources.
+    pub fn resource<'a>(&'a self, frame: &'a DataFrame, resource: Resource) -> Option<wgpu::BindingResource<'a>> {
         let view = wgpu::BindingResource::TextureView;
-        let mut resources = vec![buffer.as_entire_binding(), view(inputs.depth), view(inputs.ids)];
-        for i in 0..MAX_MAPPINGS {
-            match textures.get(i) {
-                Some((lower, upper, lut)) => resources.extend([view(&lower.view), view(&upper.view), view(lut)]),
-                None => resources.extend([view(&self.empty_grid), view(&self.empty_grid), view(&self.empty_lut)]),
-            }
-        }
-        let bind_group = self.pass.bind_group(&gpu.device, inputs.post, &resources);
-        self.pass.encode(encoder, target, &bind_group, super::post::FrameContext::plain(&gpu.device));
-        Ok(())
+        let field = |i: usize| frame.fields.get(i);
+        Some(match resource {
+            Resource::DataBlock => frame.block.as_entire_binding(),
+            Resource::FieldLower(i) => view(field(i).map_or(&self.empty_grid, |f| &f.0.view)),
+            Resource::FieldUpper(i) => view(field(i).map_or(&self.empty_grid, |f| &f.1.view)),
+            Resource::FieldColors(i) => view(field(i).map_or(&self.empty_lut, |f| &f.2)),
+            _ => return None,
+        })
     }
 }

@@ -1,18 +1,19 @@
-//! The frame loop: G-buffer pass, depth pre-filter, contour + tone pass, compose pass,
-//! read-back.
+//! The frame loop: one [`FrameRequest`] → the geometry pass into the G-buffer, then the
+//! declared post passes ([`super::passes::POST_PASSES`]) over the named targets, then the
+//! read-back of what the request asks for.
 
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
-use super::gbuffer::{FrameUniform, GBuffer, GeometryPass, LayerUniform, layer_uniforms, render_target};
+use super::gbuffer::{GeometryFrame, GeometryPass, LayerStyle, layer_uniforms, render_target};
 use super::parametrization::ReferenceCoords;
-use super::post::{
-    self, CONTOUR_FORMAT, ComposePass, FrameContext, FullscreenPass, OUTPUT_FORMAT, PREFILTER_FORMAT, PostPass,
-    Specialization, TONE_FORMAT,
-};
+use super::passes::pipeline::FrameContext;
+use super::passes::post_block::{PostStyle, Styles};
+use super::passes::targets::{FrameTargets, OUTPUT_FORMAT};
+use super::passes::{COPY, POST_PASSES, PostPass, Resource, Specialization, Target, When};
 use super::profile::{PassTimes, Recorder};
-use super::projection::{DATA_FORMAT, DataInputs, DataView, ProjectionPass};
+use super::projection::{DataFrame, DataInputs, DataView, ProjectionPass};
 use super::scene_gpu::{DrawStats, LayerDraw, SceneGpu};
-use super::style::{FrameStyle, PostParams, PostUniform, STYLE_SLOTS, Style, art_groups, style_slot};
-use super::{Gpu, RenderError, readback};
+use super::style::{FrameStyle, STYLE_SLOTS, Style, art_groups, style_slot};
+use super::{Gpu, RenderError, readback, uniforms};
 use crate::prep::cache::DiskCache;
 use crate::prep::lod::LodSettings;
 use crate::scene::Scene;
@@ -26,11 +27,9 @@ use wgpu::util::DeviceExt;
 pub struct Renderer {
     gpu: Arc<Gpu>,
     geometry: GeometryPass,
-    prefilter: FullscreenPass,
-    contour: FullscreenPass,
-    tone_blur: FullscreenPass,
-    compose: ComposePass,
-    copy: FullscreenPass,
+    /// The passes of [`POST_PASSES`], in that order.
+    passes: Vec<PostPass>,
+    copy: PostPass,
     projection: ProjectionPass,
     scene: SceneGpu,
     lod: LodSettings,
@@ -64,58 +63,6 @@ pub struct ViewState {
     references: ReferenceCoords,
 }
 
-/// The render targets of one frame size, kept for the next frames of that size: allocating
-/// (and on a CPU adapter, page-faulting) ~60 MB of targets per 1024×768 frame costs time.
-struct FrameTargets {
-    width: u32,
-    height: u32,
-    gbuffer: GBuffer,
-    prefiltered: wgpu::TextureView,
-    contours: wgpu::TextureView,
-    /// The horizontally blurred tone.
-    tone: wgpu::TextureView,
-    data_layers: wgpu::TextureView,
-    output: wgpu::Texture,
-    output_view: wgpu::TextureView,
-}
-
-/// How many frame sizes keep their targets (a WebSocket session alternates two: moving and
-/// still frames).
-const CACHED_TARGET_SIZES: usize = 3;
-
-impl FrameTargets {
-    fn new(device: &wgpu::Device, width: u32, height: u32) -> FrameTargets {
-        let view = |texture: wgpu::Texture| texture.create_view(&Default::default());
-        let output = render_target(device, "output", OUTPUT_FORMAT, width, height);
-        FrameTargets {
-            width,
-            height,
-            gbuffer: GBuffer::new(device, width, height),
-            prefiltered: view(render_target(device, "prefiltered depth", PREFILTER_FORMAT, width, height)),
-            contours: view(render_target(device, "contours", CONTOUR_FORMAT, width, height)),
-            tone: view(render_target(device, "tone", TONE_FORMAT, width, height)),
-            data_layers: view(render_target(device, "data layers", DATA_FORMAT, width, height)),
-            output_view: output.create_view(&Default::default()),
-            output,
-        }
-    }
-
-    /// The targets of a `width` × `height` frame from `cache` (most recently used last),
-    /// allocated when missing; the least recently used size is dropped beyond
-    /// [`CACHED_TARGET_SIZES`].
-    fn get<'a>(cache: &'a mut Vec<FrameTargets>, device: &wgpu::Device, width: u32, height: u32) -> &'a FrameTargets {
-        let targets = match cache.iter().position(|t| (t.width, t.height) == (width, height)) {
-            Some(index) => cache.remove(index),
-            None => FrameTargets::new(device, width, height),
-        };
-        cache.push(targets);
-        if cache.len() > CACHED_TARGET_SIZES {
-            cache.remove(0);
-        }
-        &cache[cache.len() - 1]
-    }
-}
-
 /// Options fixed for the lifetime of a [`Renderer`].
 #[derive(Debug, Clone, Default)]
 pub struct RenderOptions {
@@ -124,16 +71,111 @@ pub struct RenderOptions {
     /// Disk cache of preprocessing results (HLPs, baked billboards); `None` keeps them in the
     /// process only.
     pub cache: Option<Arc<DiskCache>>,
-    /// Time the passes of every n-th frame of `render`/`render_with_data`/`render_view`
-    /// (available from [`Renderer::take_pass_times`]); 0 never does.
+    /// Time the passes of every n-th frame (available from [`Renderer::take_pass_times`]); 0
+    /// never does.
     pub profile_every: u32,
 }
 
-/// A rendered frame with its linear depth (metres, row-major), for motion-compensated
-/// comparisons of consecutive frames.
-pub struct FrameWithDepth {
+/// What a frame reads back besides its image.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Readback {
+    /// The linear depth (metres, row-major), for motion-compensated comparisons of
+    /// consecutive frames and for picking.
+    pub depth: bool,
+    /// Object IDs (row-major; see [`super::gbuffer::object_id`]): for picking the plant
+    /// under a pointer, and for tests.
+    pub ids: bool,
+}
+
+impl Readback {
+    /// The depth as well as the image.
+    pub const DEPTH: Readback = Readback { depth: true, ids: false };
+    /// The object IDs as well as the image.
+    pub const IDS: Readback = Readback { depth: false, ids: true };
+}
+
+/// Everything one frame depends on: the camera, the style of every layer, the size, the data
+/// layers, the view's history and what to read back.
+pub struct FrameRequest<'a> {
+    /// The camera.
+    pub camera: &'a Camera,
+    /// A [`Style`] or a [`FrameStyle`] with styles per layer (thesis 8.2.8).
+    pub style: FrameStyle,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Data layers projected onto the landscape (thesis 9.3); `None`: none.
+    pub data: Option<&'a DataView>,
+    /// The per-view state of an animated sequence: the hatching reference coordinates follow
+    /// the camera from the last frame (thesis eq. 6.2). Without, every HLP's reference
+    /// coordinates are zero, so the same request always gives the same image.
+    pub history: Option<&'a mut ViewState>,
+    /// What to read back besides the image.
+    pub read: Readback,
+    /// Time every pass ([`Frame::times`]): slower than a plain frame, because each pass waits
+    /// for the previous one; for the benchmark.
+    pub profile: bool,
+}
+
+impl<'a> FrameRequest<'a> {
+    /// A frame of `camera` in `style` at `width` × `height`, without data layers or history,
+    /// reading back the image only.
+    pub fn new(camera: &'a Camera, style: impl Into<FrameStyle>, width: u32, height: u32) -> FrameRequest<'a> {
+        FrameRequest {
+            camera,
+            style: style.into(),
+            width,
+            height,
+            data: None,
+            history: None,
+            read: Readback::default(),
+            profile: false,
+        }
+    }
+
+    /// With the data layers of `data`.
+    pub fn data(self, data: &'a DataView) -> FrameRequest<'a> {
+        FrameRequest { data: Some(data), ..self }
+    }
+
+    /// As the next frame of the view `state`.
+    pub fn history(self, state: &'a mut ViewState) -> FrameRequest<'a> {
+        FrameRequest { history: Some(state), ..self }
+    }
+
+    /// Reading back `read` as well as the image.
+    pub fn read(self, read: Readback) -> FrameRequest<'a> {
+        FrameRequest { read, ..self }
+    }
+
+    /// Timing every pass.
+    pub fn profiled(self) -> FrameRequest<'a> {
+        FrameRequest { profile: true, ..self }
+    }
+}
+
+/// A rendered frame and what its request read back.
+pub struct Frame {
+    /// The image.
     pub image: image::RgbaImage,
-    pub depth: Vec<f32>,
+    /// Linear depth in metres, row-major, when [`Readback::depth`] was asked for.
+    pub depth: Option<Vec<f32>>,
+    /// Object IDs, row-major, when [`Readback::ids`] was asked for.
+    pub ids: Option<Vec<u32>>,
+    /// What the geometry pass drew (the seeds' Table 8.1 figures).
+    pub stats: DrawStats,
+    /// Per-pass times when the request was [`FrameRequest::profiled`].
+    pub times: Option<PassTimes>,
+}
+
+/// What the frame's post passes are bound to, once its geometry is drawn.
+struct PostFrame<'a> {
+    targets: &'a FrameTargets,
+    data: Option<&'a DataFrame>,
+    /// Targets read in place of the outputs of passes that did not run
+    /// ([`super::passes::PostPassDecl::bypass`]).
+    bypass: Vec<(Target, Target)>,
 }
 
 impl Renderer {
@@ -151,11 +193,8 @@ impl Renderer {
         Ok(Renderer {
             sun: scene.sun.direction(),
             layer_names: scene.layers.iter().map(|l| l.name.clone()).collect(),
-            prefilter: post::prefilter(&gpu.device),
-            contour: post::contour(&gpu.device),
-            tone_blur: post::tone_blur(&gpu.device),
-            compose: ComposePass::new(&gpu.device),
-            copy: post::copy(&gpu.device),
+            passes: POST_PASSES.iter().map(|decl| PostPass::new(&gpu.device, decl)).collect(),
+            copy: PostPass::new(&gpu.device, &COPY),
             projection: ProjectionPass::new(&gpu, scene),
             art: ArtTextures::defaults(&gpu.device, &gpu.queue),
             gpu,
@@ -169,16 +208,14 @@ impl Renderer {
         })
     }
 
-    /// What the geometry pass would draw for `camera`: plants culled and drawn per level of
-    /// detail, triangles submitted and the source geometry (the seeds' Table 8.1 figures).
-    pub fn draw_stats(&self, camera: &Camera, width: u32, height: u32) -> DrawStats {
-        self.draw_stats_with_style(camera, &Style::default(), width, height)
-    }
-
-    /// [`Renderer::draw_stats`] with every layer in `style` (hidden layers, leaf particles).
-    pub fn draw_stats_with_style(&self, camera: &Camera, style: &Style, width: u32, height: u32) -> DrawStats {
-        let drawn_as = LayerDraw::from(&style.resolved());
-        self.scene.cull(camera, (width, height), &self.lod, |_| drawn_as, |_, _| [0.0; 2]).stats
+    /// What the geometry pass would draw for `request` (plants culled and drawn per level of
+    /// detail, triangles submitted and the source geometry: the seeds' Table 8.1 figures),
+    /// without drawing.
+    pub fn draw_stats(&self, request: &FrameRequest<'_>) -> Result<DrawStats, RenderError> {
+        let slots = self.check(&request.style, request.width, request.height)?;
+        let size = (request.width, request.height);
+        let drawn_as = |id| LayerDraw::from(&slots[style_slot(id)]);
+        Ok(self.scene.cull(request.camera, size, &self.lod, drawn_as, |_, _| [0.0; 2]).stats)
     }
 
     /// Number of tonal art maps (`Style::hatch_map` indexes them) and silhouette art maps
@@ -240,7 +277,7 @@ impl Renderer {
         let device = &self.gpu.device;
         let frame_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("frame"),
-            contents: bytemuck::bytes_of(&FrameUniform::new(camera, width, height)),
+            contents: &uniforms::bytes(&GeometryFrame::new(camera, width, height)),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let layer_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -259,7 +296,7 @@ impl Renderer {
                     resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                         buffer: &layer_buffer,
                         offset: 0,
-                        size: wgpu::BufferSize::new(std::mem::size_of::<LayerUniform>() as u64),
+                        size: wgpu::BufferSize::new(uniforms::size_of::<LayerStyle>()),
                     }),
                 },
             ],
@@ -276,86 +313,20 @@ impl Renderer {
         }
     }
 
-    /// The object ID of every pixel (row-major; see [`super::gbuffer::object_id`]), from the
-    /// G-buffer pass alone: for picking the plant under a pointer, and for tests.
-    pub fn object_ids(&self, camera: &Camera, width: u32, height: u32) -> Result<Vec<u32>, RenderError> {
-        self.object_ids_with_style(camera, FrameStyle::default(), width, height)
-    }
-
-    /// [`Renderer::object_ids`] of the scene drawn in `style` (leaf modes, HLP abstraction).
-    pub fn object_ids_with_style(
-        &self,
-        camera: &Camera,
-        style: impl Into<FrameStyle>,
-        width: u32,
-        height: u32,
-    ) -> Result<Vec<u32>, RenderError> {
-        let slots = self.check(&style.into(), width, height)?;
+    /// Renders the frame `request` asks for (see [`FrameRequest`]).
+    pub fn render(&self, mut request: FrameRequest<'_>) -> Result<Frame, RenderError> {
+        let slots = self.check(&request.style, request.width, request.height)?;
+        if let Some(data) = request.data {
+            ProjectionPass::check(data)?;
+        }
         self.scoped(|| {
-            let device = &self.gpu.device;
-            let gbuffer = GBuffer::new(device, width, height);
-            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ids") });
-            // The instance buffer is shared: one frame at a time.
-            let _frame = self.targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-            let layer = |id| LayerDraw::from(&slots[style_slot(id)]);
-            let visible = self.scene.cull(camera, (width, height), &self.lod, layer, |_, _| [0.0; 2]);
-            let references = self.scene.upload(device, &self.gpu.queue, &visible, None);
-            let frame = self.frame_bind_group(camera, &slots, width, height, &references);
-            self.geometry.encode(&mut encoder, &gbuffer, &frame, &self.scene, &visible);
-            self.gpu.queue.submit([encoder.finish()]);
-            let texels = readback::read_texels(&self.gpu, &gbuffer.id_texture, width, height, 8)?;
-            Ok(texels.chunks_exact(8).map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect())
+            if request.profile {
+                let mut times = PassTimes::new();
+                let frame = self.render_frame(&mut request, &slots, Some(&mut times))?;
+                return Ok(Frame { times: Some(times), ..frame });
+            }
+            self.sampled(|times| self.render_frame(&mut request, &slots, times))
         })
-    }
-
-    /// Renders a `width` × `height` image of the scene seen from `camera` in `style`: a
-    /// [`Style`] (`&style`) or a [`FrameStyle`] with styles per layer (thesis 8.2.8). Without
-    /// history, every HLP's reference texture coordinates are zero, so the same request always
-    /// gives the same image.
-    pub fn render(
-        &self,
-        camera: &Camera,
-        style: impl Into<FrameStyle>,
-        width: u32,
-        height: u32,
-    ) -> Result<image::RgbaImage, RenderError> {
-        self.render_with_data(camera, style, width, height, &DataView::default())
-    }
-
-    /// [`Renderer::render`] with data layers projected onto the landscape (thesis 9.3).
-    pub fn render_with_data(
-        &self,
-        camera: &Camera,
-        style: impl Into<FrameStyle>,
-        width: u32,
-        height: u32,
-        data: &DataView,
-    ) -> Result<image::RgbaImage, RenderError> {
-        let slots = self.check(&style.into(), width, height)?;
-        ProjectionPass::check(data)?;
-        self.scoped(|| {
-            self.sampled(|times| Ok(self.render_frame(camera, &slots, width, height, None, data, false, times)?.image))
-        })
-    }
-
-    /// [`Renderer::render`] (or, with `state`, [`Renderer::render_view`]) timing every pass
-    /// (see [`super::profile`]): slower than a plain frame, because each pass waits for the
-    /// previous one; for the benchmark.
-    pub fn render_profiled(
-        &self,
-        state: Option<&mut ViewState>,
-        camera: &Camera,
-        style: impl Into<FrameStyle>,
-        width: u32,
-        height: u32,
-    ) -> Result<(image::RgbaImage, PassTimes), RenderError> {
-        let slots = self.check(&style.into(), width, height)?;
-        let mut times = PassTimes::new();
-        let data = DataView::default();
-        let history = state.map(|s| &mut s.references);
-        let frame =
-            self.scoped(|| self.render_frame(camera, &slots, width, height, history, &data, false, Some(&mut times)))?;
-        Ok((frame.image, times))
     }
 
     /// Wall times (ms) of `runs` plain full-screen copy passes at `width` × `height`: the floor
@@ -369,17 +340,18 @@ impl Renderer {
             render_target(device, "copy target", OUTPUT_FORMAT, width, height).create_view(&Default::default());
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("copy uniform"),
-            size: std::mem::size_of::<PostUniform>() as u64,
+            size: uniforms::size_of::<Styles>(),
             usage: wgpu::BufferUsages::UNIFORM,
             mapped_at_creation: false,
         });
         let inputs = self.copy.bind_group(device, &uniform, &[wgpu::BindingResource::TextureView(&source)]);
+        let context = FrameContext { device, spec: Specialization::default(), depth: None };
         self.scoped(|| {
             (0..runs.max(1) + 1)
                 .map(|_| {
                     let mut times = PassTimes::new();
                     let mut recorder = Recorder::new(&self.gpu, Some(&mut times));
-                    self.copy.encode(recorder.encoder(), &target, &inputs, FrameContext::plain(device));
+                    self.copy.encode(recorder.encoder(), &target, &inputs, true, context);
                     recorder.mark("copy")?;
                     recorder.submit();
                     Ok(times[0].1)
@@ -392,21 +364,7 @@ impl Renderer {
     /// Estimated GPU memory in bytes: the scene's buffers and textures plus the render targets
     /// of one `width` × `height` frame.
     pub fn gpu_bytes(&self, width: u32, height: u32) -> u64 {
-        let formats = [
-            super::gbuffer::ALBEDO_FORMAT,
-            super::gbuffer::NORMAL_FORMAT,
-            super::gbuffer::LINEAR_DEPTH_FORMAT,
-            super::gbuffer::ID_FORMAT,
-            super::gbuffer::HATCH_FORMAT,
-            super::gbuffer::DEPTH_FORMAT,
-            PREFILTER_FORMAT,
-            CONTOUR_FORMAT,
-            TONE_FORMAT,
-            DATA_FORMAT,
-            OUTPUT_FORMAT,
-        ];
-        let per_pixel: u64 = formats.iter().map(|f| u64::from(f.target_pixel_byte_cost().unwrap_or(4))).sum();
-        self.scene.gpu_bytes() + per_pixel * u64::from(width) * u64::from(height)
+        self.scene.gpu_bytes() + FrameTargets::bytes_per_pixel() * u64::from(width) * u64::from(height)
     }
 
     /// Runs `frame`, with pass timing when it is one of the sampled frames
@@ -432,122 +390,77 @@ impl Renderer {
         self.pass_times.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take()
     }
 
-    /// A fresh per-view state for [`Renderer::render_view`].
+    /// A fresh per-view state for [`FrameRequest::history`].
     pub fn new_view_state(&self) -> ViewState {
         ViewState { references: ReferenceCoords::new() }
     }
 
-    /// Renders the next frame of an animated view: first moves the hatching reference
-    /// coordinates with the camera (thesis eq. 6.2), then renders with them and the data
-    /// layers of `data`. Returns the depth too when `with_depth` is set.
-    #[allow(clippy::too_many_arguments)]
-    pub fn render_view(
-        &self,
-        state: &mut ViewState,
-        camera: &Camera,
-        style: impl Into<FrameStyle>,
-        width: u32,
-        height: u32,
-        data: &DataView,
-        with_depth: bool,
-    ) -> Result<FrameWithDepth, RenderError> {
-        let slots = self.check(&style.into(), width, height)?;
-        ProjectionPass::check(data)?;
-        self.scoped(|| {
-            self.sampled(|times| {
-                self.render_frame(camera, &slots, width, height, Some(&mut state.references), data, with_depth, times)
-            })
+    /// What a post pass binds for `reads` in `frame`, with the SAM of art-map group `sam`.
+    fn resource<'r>(
+        &'r self,
+        frame: &PostFrame<'r>,
+        reads: Resource,
+        sam: usize,
+    ) -> Result<wgpu::BindingResource<'r>, RenderError> {
+        let view = wgpu::BindingResource::TextureView;
+        Ok(match reads {
+            Resource::Target(target) => {
+                let read = frame.bypass.iter().find(|(output, _)| *output == target).map_or(target, |(_, to)| *to);
+                view(frame.targets.view(read))
+            }
+            Resource::Tams => view(&self.art.all_tams),
+            Resource::Sam => view(&self.art.sams[sam]),
+            Resource::TamSampler => wgpu::BindingResource::Sampler(&self.art.tam_sampler),
+            Resource::SamSampler => wgpu::BindingResource::Sampler(&self.art.sam_sampler),
+            Resource::HatchColors => self.projection.hatch_colors().as_entire_binding(),
+            other => {
+                frame.data.and_then(|data| self.projection.resource(data, other)).ok_or_else(|| RenderError::Gpu {
+                    stage: "frame",
+                    message: format!("{other:?} is read while no data layers are drawn"),
+                })?
+            }
         })
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn render_frame(
         &self,
-        camera: &Camera,
+        request: &mut FrameRequest<'_>,
         slots: &[Style],
-        width: u32,
-        height: u32,
-        history: Option<&mut ReferenceCoords>,
-        data: &DataView,
-        with_depth: bool,
         times: Option<&mut PassTimes>,
-    ) -> Result<FrameWithDepth, RenderError> {
+    ) -> Result<Frame, RenderError> {
         let device = &self.gpu.device;
         let started = std::time::Instant::now();
+        let (camera, width, height) = (request.camera, request.width, request.height);
+        let no_data = DataView::default();
+        let data = request.data.unwrap_or(&no_data);
         let mut cache = self.targets.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let targets = FrameTargets::get(&mut cache, device, width, height);
-        let FrameTargets { gbuffer, prefiltered, contours, tone, data_layers, output, output_view, .. } = targets;
 
         // One post uniform block per silhouette-art-map group, each with the styles of all
         // slots; the compose pass runs once per group (thesis 8.2.8, see `art_groups`).
         let style = &slots[0];
         let (sams, slot_groups) = art_groups(slots);
-        let params: [PostParams; STYLE_SLOTS] = std::array::from_fn(|i| {
+        let params: [PostStyle; STYLE_SLOTS] = std::array::from_fn(|i| {
             let tam = &self.art.tams[slots[i].hatch_map];
-            PostParams::new(&slots[i], self.sun, camera.roll.to_radians(), tam.levels, tam.size, slot_groups[i])
+            PostStyle::new(&slots[i], self.sun, camera.roll.to_radians(), tam.levels, tam.size, slot_groups[i])
         });
         let layer_tams = slots.iter().any(|s| s.hatch_map != style.hatch_map);
+        let data_runs = ProjectionPass::writes(data, layer_tams);
         // Pipelines specialised for what this frame's styles and data need.
         let context = FrameContext {
             device,
-            spec: Specialization::for_frame(&params, data.has_hatch_colors(), ProjectionPass::writes(data, layer_tams)),
-            depth: Some(&gbuffer.depth),
+            spec: Specialization::for_frame(&params, data.has_hatch_colors(), data_runs),
+            depth: Some(&targets.gbuffer.depth),
         };
         let post_buffers: Vec<wgpu::Buffer> = (0..sams.len())
             .map(|group| {
-                let uniform = PostUniform::new(params, camera, width, height, group as u32);
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("post"),
-                    contents: bytemuck::bytes_of(&uniform),
+                    label: Some("styles"),
+                    contents: &uniforms::bytes(&Styles::new(params, camera, width, height, group as u32)),
                     usage: wgpu::BufferUsages::UNIFORM,
                 })
             })
             .collect();
-        let post_buffer = &post_buffers[0];
-        let view = wgpu::BindingResource::TextureView;
-        let depth_for_contours = if style.contour_prefilter { prefiltered } else { &gbuffer.linear_depth };
-        let prefilter_inputs = self.prefilter.bind_group(device, post_buffer, &[view(&gbuffer.linear_depth)]);
-        let contour_inputs = self.contour.bind_group(
-            device,
-            post_buffer,
-            &[view(depth_for_contours), view(&gbuffer.albedo), view(&gbuffer.normal), view(&gbuffer.id)],
-        );
-        let tone_inputs = self.tone_blur.bind_group(device, post_buffer, &[view(contours), view(&gbuffer.id)]);
-        let compose_inputs: Vec<wgpu::BindGroup> = sams
-            .iter()
-            .zip(&post_buffers)
-            .map(|(&sam, buffer)| {
-                self.compose.bind_group(
-                    device,
-                    buffer,
-                    &[
-                        view(contours),
-                        view(&gbuffer.linear_depth),
-                        view(&gbuffer.id),
-                        view(&gbuffer.hatch),
-                        view(&gbuffer.normal),
-                        view(&gbuffer.albedo),
-                        view(&self.art.all_tams),
-                        view(&self.art.sams[sam]),
-                        wgpu::BindingResource::Sampler(&self.art.tam_sampler),
-                        wgpu::BindingResource::Sampler(&self.art.sam_sampler),
-                        view(data_layers),
-                        self.projection.hatch_colors().as_entire_binding(),
-                        view(tone),
-                    ],
-                )
-            })
-            .collect();
-        let data_inputs = DataInputs {
-            camera,
-            width,
-            height,
-            tams: (style.hatch_map, self.art.tams.len()),
-            layer_tams,
-            post: post_buffer,
-            depth: &gbuffer.linear_depth,
-            ids: &gbuffer.id,
-        };
 
         let mut recorder = Recorder::new(&self.gpu, times);
         // D3 abstraction is drawn here, in the geometry stage: per plant, from the field at its
@@ -562,38 +475,64 @@ impl Renderer {
         );
         // The reference coordinates follow the camera (eq. 6.2) in the base style's tiles
         // (layers share them); a frame without history has them all at zero.
-        let uvs = history.map(|state| {
+        let uvs = request.history.as_deref_mut().map(|state| {
             let eye = glam::Vec3::from(camera.position);
             let (center, parent) = (|k| self.scene.reference_center(k), |k| self.scene.reference_parent(k));
-            state.update(visible.references(), center, parent, eye, slots[0].hatch_tiles)
+            state.references.update(visible.references(), center, parent, eye, slots[0].hatch_tiles)
         });
         let references = self.scene.upload(device, &self.gpu.queue, &visible, uvs.as_deref());
         let frame = self.frame_bind_group(camera, slots, width, height, &references);
         recorder.mark("cull")?;
-        self.geometry.encode(recorder.encoder(), gbuffer, &frame, &self.scene, &visible);
+        self.geometry.encode(recorder.encoder(), &targets.gbuffer, &frame, &self.scene, &visible);
         recorder.mark("geometry")?;
-        if style.contour_prefilter {
-            self.prefilter.encode(recorder.encoder(), prefiltered, &prefilter_inputs, context);
-            recorder.mark("prefilter")?;
+
+        let inputs = DataInputs { camera, width, height, tams: self.art.tams.len(), layer_tams };
+        let data_frame = if data_runs { self.projection.prepare(&self.gpu, &inputs, data)? } else { None };
+        let mut post = PostFrame { targets, data: data_frame.as_ref(), bypass: Vec::new() };
+        for pass in &self.passes {
+            let decl = pass.decl();
+            let runs = match decl.runs {
+                When::Always => true,
+                When::Prefilter => style.contour_prefilter,
+                When::DataLayers => data_runs,
+            };
+            if !runs {
+                post.bypass.extend(decl.bypass.map(|to| (decl.output, to)));
+                continue;
+            }
+            let groups = if decl.per_art_group { sams.len() } else { 1 };
+            for (group, buffer) in post_buffers.iter().enumerate().take(groups) {
+                let resources = decl
+                    .inputs
+                    .iter()
+                    .map(|binding| self.resource(&post, binding.reads, sams[group]))
+                    .collect::<Result<Vec<_>, _>>()?;
+                let bind_group = pass.bind_group(device, buffer, &resources);
+                pass.encode(recorder.encoder(), targets.view(decl.output), &bind_group, group == 0, context);
+            }
+            recorder.mark(decl.name)?;
         }
-        self.contour.encode(recorder.encoder(), contours, &contour_inputs, context);
-        recorder.mark("contour")?;
-        self.tone_blur.encode(recorder.encoder(), tone, &tone_inputs, context);
-        recorder.mark("tone_blur")?;
-        self.projection.encode(&self.gpu, recorder.encoder(), data_layers, &data_inputs, data)?;
-        recorder.mark("data")?;
-        for (group, inputs) in compose_inputs.iter().enumerate() {
-            self.compose.encode(recorder.encoder(), output_view, inputs, group == 0, context);
-        }
-        recorder.mark("compose")?;
         let mut timer = recorder.submit();
-        let image = readback::read_rgba8(&self.gpu, output, width, height)?;
+        let image = readback::read_rgba8(&self.gpu, &targets.output, width, height)?;
         timer.mark("readback");
-        let depth = if with_depth {
-            let texels = readback::read_texels(&self.gpu, &gbuffer.linear_depth_texture, width, height, 8)?;
-            texels.chunks_exact(8).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect()
-        } else {
-            Vec::new()
+        let texels = |texture: &wgpu::Texture| readback::read_texels(&self.gpu, texture, width, height, 8);
+        let depth = match request.read.depth {
+            true => Some(
+                texels(&targets.gbuffer.linear_depth_texture)?
+                    .chunks_exact(8)
+                    .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect(),
+            ),
+            false => None,
+        };
+        let ids = match request.read.ids {
+            true => Some(
+                texels(&targets.gbuffer.id_texture)?
+                    .chunks_exact(8)
+                    .map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect(),
+            ),
+            false => None,
         };
         debug!(
             width,
@@ -603,6 +542,6 @@ impl Renderer {
             plants = visible.stats.plants_drawn,
             "frame rendered"
         );
-        Ok(FrameWithDepth { image, depth })
+        Ok(Frame { image, depth, ids, stats: visible.stats, times: None })
     }
 }

@@ -5,11 +5,12 @@
 
 use super::bake::{BakeDraw, BakeTile, Baker};
 use super::gbuffer::{
-    GeometryPass, Instance, LAYER_STRIDE, LeafVertex, MaterialUniform, NO_HLP, Surface, TERRAIN_LAYER_CODE, Vertex,
-    average_color, object_id,
+    GeometryPass, Instance, LAYER_STRIDE, LeafVertex, NO_HLP, Surface, SurfaceMaterial, TERRAIN_LAYER_CODE, Vertex,
+    object_id,
 };
 use super::parametrization::RefKey;
 use super::style::{STYLE_SLOTS, Style, style_slot};
+use super::uniforms;
 use super::{Gpu, RenderError};
 use crate::prep::cache::{DiskCache, KeyBuilder};
 use crate::prep::hlp::{self, Hlps, Sphere};
@@ -363,14 +364,10 @@ impl Uploader<'_> {
         };
         let alpha_min = shapes.as_ref().map_or(cutoff, |(_, alpha_min)| *alpha_min);
         let texture = shapes.map(|(map, _)| map).or_else(|| material.texture.clone());
-        let uniform = MaterialUniform {
-            base_color: material.base_color,
-            params: [cutoff, 0.0, alpha_min, particle_scale],
-            average_color: average_color(material),
-        };
+        let uniform = SurfaceMaterial::new(material, cutoff, alpha_min, particle_scale);
         let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("material"),
-            contents: bytemuck::bytes_of(&uniform),
+            contents: &uniforms::bytes(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let view = match &texture {
