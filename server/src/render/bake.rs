@@ -2,7 +2,8 @@
 //! plane drawn offscreen with an orthographic camera (`shaders/bake.wgsl`), read back so it can
 //! be cached on disk and uploaded with a mip chain like any material texture.
 
-use super::gbuffer::{DEPTH_FORMAT, Vertex, storage_entry};
+use super::bind_layouts::storage_entry;
+use super::gbuffer::{DEPTH_FORMAT, Vertex};
 use super::{Gpu, RenderError, readback};
 use crate::prep::lod::Atlas;
 use std::ops::Range;

@@ -1,5 +1,6 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
+use super::bind_layouts::{storage_entry, texture_entry, uniform_entry};
 use super::style::{HatchSpace, STYLE_SLOTS, Style};
 use crate::prep::hlp::Sphere;
 use crate::prep::leaves::{CORNERS, Leaf};
@@ -332,19 +333,6 @@ pub struct GeometryPass {
     pub sampler: wgpu::Sampler,
 }
 
-fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 /// A bind group layout entry for the [`LayerUniform`] of one style slot, bound per draw at a
 /// dynamic offset into the layer buffer (see [`layer_uniforms`]).
 fn layer_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
@@ -358,39 +346,6 @@ fn layer_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
         },
         count: None,
     }
-}
-
-/// A bind group layout entry for a read-only storage buffer.
-pub fn storage_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A bind group layout entry for a texture read by a fragment shader.
-pub fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Texture {
-            sample_type,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
-}
-
-/// A uniform-buffer bind group layout entry (shared by the post passes).
-pub fn uniform_layout_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    uniform_entry(binding, wgpu::ShaderStages::VERTEX_FRAGMENT)
 }
 
 impl GeometryPass {

@@ -5,6 +5,7 @@
 pub mod art_textures;
 pub mod artmaps;
 pub mod bake;
+pub mod bind_layouts;
 pub mod coherence;
 pub mod device;
 pub mod gbuffer;

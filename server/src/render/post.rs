@@ -5,7 +5,8 @@
 //! tone of 6.1.3), [`tone_blur`] (horizontal) and [`ComposePass`] (eq. 5.2, vertical tone
 //! blur, TAM hatching, SAM silhouettes, paper).
 
-use super::gbuffer::{DEPTH_FORMAT, texture_entry, uniform_layout_entry};
+use super::bind_layouts::{texture_entry, uniform_layout_entry};
+use super::gbuffer::DEPTH_FORMAT;
 use super::style::PostParams;
 use std::collections::HashMap;
 use std::sync::Mutex;
