@@ -1,6 +1,7 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
 use super::bind_layouts::{storage_entry, texture_entry, uniform_entry};
+use super::layer_code::LayerCode;
 use super::style::{HatchSpace, STYLE_SLOTS, Style};
 use crate::prep::hlp::Sphere;
 use crate::prep::leaves::{CORNERS, Leaf};
@@ -25,12 +26,12 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Linear depth written where no geometry is: "infinitely" far, so the horizon gets a contour.
 pub const BACKGROUND_DEPTH: f64 = 1.0e7;
 
-/// Layer code of the terrain in the ID buffer; vegetation layer `i` has code `i + 2`.
-pub const TERRAIN_LAYER_CODE: u32 = 1;
+/// Layer code of the terrain in the ID buffer ([`LayerCode::TERRAIN`] as a number).
+pub const TERRAIN_LAYER_CODE: u32 = LayerCode::TERRAIN.code();
 
 /// Builds an object ID for the ID buffer from a layer code and an object index.
-pub fn object_id(layer_code: u32, index: u32) -> u32 {
-    (layer_code << 24) | ((index + 1) & 0x00FF_FFFF)
+pub fn object_id(layer: LayerCode, index: u32) -> u32 {
+    (layer.code() << LayerCode::SHIFT) | ((index + 1) & LayerCode::INDEX_MASK)
 }
 
 /// The render targets of stage one for one image size.

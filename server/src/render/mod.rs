@@ -9,6 +9,7 @@ pub mod bind_layouts;
 pub mod coherence;
 pub mod device;
 pub mod gbuffer;
+pub mod layer_code;
 pub mod parametrization;
 pub mod post;
 pub mod presets;

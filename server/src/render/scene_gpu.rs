@@ -5,11 +5,12 @@
 
 use super::bake::{BakeDraw, BakeTile, Baker};
 use super::gbuffer::{
-    GeometryPass, Instance, LAYER_STRIDE, LeafVertex, MaterialUniform, NO_HLP, Surface, TERRAIN_LAYER_CODE, Vertex,
-    average_color, object_id,
+    GeometryPass, Instance, LAYER_STRIDE, LeafVertex, MaterialUniform, NO_HLP, Surface, Vertex, average_color,
+    object_id,
 };
+use super::layer_code::LayerCode;
 use super::parametrization::RefKey;
-use super::style::{STYLE_SLOTS, Style, style_slot};
+use super::style::{STYLE_SLOTS, Style};
 use super::{Gpu, RenderError};
 use crate::prep::cache::{DiskCache, KeyBuilder};
 use crate::prep::hlp::{self, Hlps, Sphere};
@@ -466,7 +467,7 @@ impl SceneGpu {
                 let instance = Instance {
                     offset_scale: [x, y, z, plant.scale],
                     rotation: [plant.rotation.cos(), plant.rotation.sin()],
-                    object_id: object_id(layer_index as u32 + 2, i as u32),
+                    object_id: object_id(LayerCode::vegetation(layer_index), i as u32),
                     reference_base: 0,
                     mask: [0.0, 1.0],
                     data_abstraction: [0.0; 2],
@@ -735,7 +736,7 @@ impl SceneGpu {
             let s = &self.species[plant.species];
             let i = &plant.instance;
             let drawn_as = layer(i.object_id);
-            let slot = style_slot(i.object_id);
+            let slot = LayerCode::of_object_id(i.object_id).slot();
             if !drawn_as.visible {
                 continue;
             }
@@ -785,7 +786,7 @@ impl SceneGpu {
         let terrain = Instance {
             offset_scale: [0.0, 0.0, 0.0, 1.0],
             rotation: [1.0, 0.0],
-            object_id: object_id(TERRAIN_LAYER_CODE, 0),
+            object_id: object_id(LayerCode::TERRAIN, 0),
             reference_base: 0,
             mask: [0.0, 1.0],
             data_abstraction: [0.0; 2],
@@ -870,7 +871,7 @@ impl SceneGpu {
         let bytes = std::mem::size_of_val(visible.instances.as_slice()) as u64;
         let layer_offset = |slot: usize| [(slot as u64 * LAYER_STRIDE) as u32];
         pass.set_vertex_buffer(1, self.instance_buffer.slice(..bytes));
-        pass.set_bind_group(0, frame, &layer_offset(style_slot(object_id(TERRAIN_LAYER_CODE, 0))));
+        pass.set_bind_group(0, frame, &layer_offset(LayerCode::TERRAIN.slot()));
         pass.set_pipeline(geometry.pipeline(Surface::Terrain));
         pass.set_bind_group(1, &self.terrain.material, &[]);
         pass.set_vertex_buffer(0, self.terrain.vertices.slice(..));
