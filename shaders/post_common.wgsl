@@ -1,11 +1,9 @@
 // Helpers shared by the post-processing passes. The block `styles` (`render::passes::post_block::
 // Styles`: one `PostStyle` per style slot, picked per pixel by the layer code of the ID buffer,
 // thesis 8.2.8) and each pass's bindings are declared ahead of this file from the pass's
-// declaration (`render::passes`).
+// declaration (`render::passes`), with the layer-code constants.
 
-const STYLE_SLOTS: u32 = 16u;
-
-// Frame-wide specialisation (`render::post::Specialization`), set per pipeline: lavapipe runs
+// Frame-wide specialisation (`render::passes::Specialization`), set per pipeline: lavapipe runs
 // every instruction of a shader for every pixel whichever way its branches go, so a frame that
 // needs less gets pipelines compiled without the rest.
 // Every slot holds the same style: slot 0 serves all pixels, no per-pixel lookup.
@@ -23,11 +21,12 @@ override SURFACE_COLOR: bool = true;
 // The style of the pixel being shaded; set by each fragment entry point with `use_style`.
 var<private> post: PostStyle;
 
-// Style slot of an object ID: its layer code (top 8 bits; 0 background, 1 terrain, i + 2
-// vegetation layer i), or the base slot 0 beyond the slots.
+// Style slot of an object ID: its layer code (`LAYER_SHIFT`, `STYLE_SLOTS` and
+// `LAYER_BACKGROUND`, the base slot, come from `render::layer_code::LayerCode`), or the base
+// slot beyond the slots.
 fn style_slot(object_id: u32) -> u32 {
-    let code = object_id >> 24u;
-    return select(0u, code, code < STYLE_SLOTS);
+    let code = object_id >> LAYER_SHIFT;
+    return select(LAYER_BACKGROUND, code, code < STYLE_SLOTS);
 }
 
 fn use_style(object_id: u32) {

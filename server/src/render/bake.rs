@@ -2,7 +2,8 @@
 //! plane drawn offscreen with an orthographic camera (`shaders/bake.wgsl`), read back so it can
 //! be cached on disk and uploaded with a mip chain like any material texture.
 
-use super::gbuffer::{DEPTH_FORMAT, Vertex, storage_entry};
+use super::bind_layouts::storage_entry;
+use super::gbuffer::{DEPTH_FORMAT, Vertex};
 use super::{Gpu, RenderError, readback};
 use crate::prep::lod::Atlas;
 use std::ops::Range;
@@ -38,14 +39,7 @@ impl Baker {
     pub fn new(device: &wgpu::Device, material_layout: &wgpu::BindGroupLayout) -> Baker {
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("bake.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(
-                format!(
-                    "{}{}",
-                    super::uniforms::Declarations::of::<super::gbuffer::SurfaceMaterial>(),
-                    include_str!("../../../shaders/bake.wgsl")
-                )
-                .into(),
-            ),
+            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
         let tiles_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("bake tiles"),
@@ -210,8 +204,19 @@ fn bleed_colour(image: &mut image::RgbaImage, rounds: usize) {
     }
 }
 
+/// `shaders/bake.wgsl` after the declaration of its material block.
+fn shader_source() -> String {
+    let material = super::uniforms::Declarations::of::<super::gbuffer::SurfaceMaterial>();
+    format!("{material}{}", include_str!("../../../shaders/bake.wgsl"))
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_bake_shader_compiles_with_its_derived_block() {
+        crate::render::uniforms::validate_wgsl("bake", &super::shader_source());
+    }
+
     use super::*;
 
     #[test]

@@ -1,5 +1,7 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
+use super::bind_layouts::{storage_entry, texture_entry, uniform_entry};
+use super::layer_code::LayerCode;
 use super::style::{HatchSpace, STYLE_SLOTS, Style};
 use super::uniforms::{self, Declarations, Mat4f, Vec2f, Vec3f, Vec4f, Wgsl, gpu_block};
 use crate::prep::hlp::Sphere;
@@ -25,12 +27,12 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Linear depth written where no geometry is: "infinitely" far, so the horizon gets a contour.
 pub const BACKGROUND_DEPTH: f64 = 1.0e7;
 
-/// Layer code of the terrain in the ID buffer; vegetation layer `i` has code `i + 2`.
-pub const TERRAIN_LAYER_CODE: u32 = 1;
+/// Layer code of the terrain in the ID buffer ([`LayerCode::TERRAIN`] as a number).
+pub const TERRAIN_LAYER_CODE: u32 = LayerCode::TERRAIN.code();
 
 /// Builds an object ID for the ID buffer from a layer code and an object index.
-pub fn object_id(layer_code: u32, index: u32) -> u32 {
-    (layer_code << 24) | ((index + 1) & 0x00FF_FFFF)
+pub fn object_id(layer: LayerCode, index: u32) -> u32 {
+    (layer.code() << LayerCode::SHIFT) | ((index + 1) & LayerCode::INDEX_MASK)
 }
 
 /// The render targets of stage one for one image size.
@@ -395,17 +397,9 @@ pub struct GeometryPass {
     pub sampler: wgpu::Sampler,
 }
 
-fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
+/// `shaders/gbuffer.wgsl` after the declarations of its blocks.
+fn shader_source() -> String {
+    format!("{}{}", GeometryFrame::declarations(), include_str!("../../../shaders/gbuffer.wgsl"))
 }
 
 /// A bind group layout entry for the [`LayerStyle`] of one style slot, bound per draw at a
@@ -423,47 +417,12 @@ fn layer_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-/// A bind group layout entry for a read-only storage buffer.
-pub fn storage_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A bind group layout entry for a texture read by a fragment shader.
-pub fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Texture {
-            sample_type,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
-}
-
-/// A uniform-buffer bind group layout entry (shared by the post passes).
-pub fn uniform_layout_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    uniform_entry(binding, wgpu::ShaderStages::VERTEX_FRAGMENT)
-}
-
 impl GeometryPass {
     /// Compiles `shaders/gbuffer.wgsl` and builds the pipeline.
     pub fn new(device: &wgpu::Device) -> GeometryPass {
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("gbuffer.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(
-                format!("{}{}", GeometryFrame::declarations(), include_str!("../../../shaders/gbuffer.wgsl")).into(),
-            ),
+            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame"),
@@ -627,5 +586,13 @@ impl GeometryPass {
             multiview_mask: None,
         });
         scene.draw(&mut pass, visible, frame, self);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_geometry_shader_compiles_with_its_derived_blocks() {
+        crate::render::uniforms::validate_wgsl("gbuffer", &super::shader_source());
     }
 }

@@ -5,9 +5,11 @@
 pub mod art_textures;
 pub mod artmaps;
 pub mod bake;
+pub mod bind_layouts;
 pub mod coherence;
 pub mod device;
 pub mod gbuffer;
+pub mod layer_code;
 pub mod parametrization;
 pub mod passes;
 pub mod presets;

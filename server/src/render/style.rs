@@ -402,8 +402,7 @@ pub const TERRAIN_LAYER: &str = "terrain";
 /// The style slot of an object ID: its layer code (top 8 bits), or the base slot 0 beyond the
 /// slots (`style_slot` in the shaders).
 pub fn style_slot(object_id: u32) -> usize {
-    let code = (object_id >> 24) as usize;
-    if code < STYLE_SLOTS { code } else { 0 }
+    super::layer_code::LayerCode::of_object_id(object_id).slot()
 }
 
 /// Style slots of one frame, indexed by the layer code of the ID buffer: 0 the background (the
@@ -449,21 +448,22 @@ impl FrameStyle {
     /// layer names. A layer name the scene does not have, or a layer beyond the slots, is an
     /// error.
     pub fn slots(&self, vegetation_layers: &[String]) -> Result<Vec<Style>, RenderError> {
+        use super::layer_code::LayerCode;
         let mut slots = vec![self.base.resolved(); STYLE_SLOTS];
         for (name, style) in &self.layers {
-            let slot = if name == TERRAIN_LAYER {
-                1
+            let code = if name == TERRAIN_LAYER {
+                LayerCode::TERRAIN
             } else {
                 let index = vegetation_layers.iter().position(|l| l == name).ok_or_else(|| {
                     let known: Vec<&str> =
                         std::iter::once(TERRAIN_LAYER).chain(vegetation_layers.iter().map(String::as_str)).collect();
                     RenderError::UnknownLayer { name: name.clone(), known: known.join(", ") }
                 })?;
-                index + 2
+                LayerCode::vegetation(index)
             };
-            if slot >= STYLE_SLOTS {
-                return Err(RenderError::LayerSlots { name: name.clone(), max: STYLE_SLOTS - 2 });
-            }
+            let Some(slot) = code.own_slot() else {
+                return Err(RenderError::LayerSlots { name: name.clone(), max: LayerCode::VEGETATION_SLOTS });
+            };
             slots[slot] = style.resolved();
         }
         Ok(slots)

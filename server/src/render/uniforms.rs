@@ -205,6 +205,17 @@ pub fn size_of<T: ShaderType>() -> u64 {
     T::min_size().get()
 }
 
+/// Parses and validates WGSL `source` with naga (wgpu's shader front end), panicking with the
+/// diagnostic: shader sources are composed from declarations, so tests check that they compile.
+#[cfg(test)]
+pub(crate) fn validate_wgsl(label: &str, source: &str) {
+    let module =
+        naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{label}: {}", e.emit_to_string(source)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{label}: {}", e.emit_to_string(source)));
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,6 +10,7 @@ pub mod pipeline;
 pub mod post_block;
 pub mod targets;
 
+use crate::render::layer_code::LayerCode;
 use crate::render::projection::{DataBlock, HatchColors};
 use crate::render::uniforms::Declarations;
 pub use pipeline::{Gate, PostPass, Specialization};
@@ -197,7 +198,7 @@ impl PostPassDecl {
     /// declarations derived from [`PostPassDecl::inputs`], the shared post helpers and the
     /// pass's own source.
     pub fn shader_source(&self) -> String {
-        let mut code = format!("{FULLSCREEN}\n{}", Declarations::of::<Styles>());
+        let mut code = format!("{FULLSCREEN}\n{}{}", LayerCode::wgsl_constants(), Declarations::of::<Styles>());
         let mut declared = Vec::new();
         for binding in self.inputs {
             let structs = binding.reads.declarations();
@@ -382,12 +383,7 @@ mod tests {
     #[test]
     fn every_declared_pass_compiles_and_validates() {
         for pass in POST_PASSES.iter().chain([&&COPY]) {
-            let source = pass.shader_source();
-            let module = naga::front::wgsl::parse_str(&source)
-                .unwrap_or_else(|e| panic!("{}: {}", pass.name, e.emit_to_string(&source)));
-            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
-                .validate(&module)
-                .unwrap_or_else(|e| panic!("{}: {}", pass.name, e.emit_to_string(&source)));
+            crate::render::uniforms::validate_wgsl(pass.name, &pass.shader_source());
         }
     }
 

@@ -3,7 +3,8 @@
 
 use super::post_block::PostStyle;
 use super::{BindingKind, PostPassDecl};
-use crate::render::gbuffer::{DEPTH_FORMAT, texture_entry, uniform_layout_entry};
+use crate::render::bind_layouts::{texture_entry, uniform_layout_entry};
+use crate::render::gbuffer::DEPTH_FORMAT;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
