@@ -1,7 +1,6 @@
 // Post pass 1: image-space contours from linear depth (thesis 5.1) and the tone image
 // (thesis 6.1.3), each pixel with the style of its layer.
 
-
 // Thesis eq. 5.1: p0 = max_i sat((d_i - d0) c - t) over the 3x3 neighbourhood, with signed
 // differences so that contours are one pixel wide and lie on the nearer surface. Depths are
 // taken relative to d0 (d_i / d0 - 1) so one threshold works from the foreground to the

@@ -1,6 +1,5 @@
 // Post pass 0 (optional): selective-dilation pre-filter of the depth buffer (thesis eq. 5.4).
 
-
 // Thesis eq. 5.3–5.4: dilate (take the nearest depth of the 3x3 neighbourhood) only where more
 // than half of the neighbours are nearer than the neighbourhood's average, i.e. at isolated
 // holes, not along clean object boundaries.

@@ -2,7 +2,6 @@
 // Fig. 6.9d), each pixel with the blur radius of its layer's style; the compose pass blurs
 // the result vertically.
 
-
 @fragment
 fn fs_tone_blur(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(frag.xy);
