@@ -751,3 +751,26 @@ async fn websocket_style_messages_take_presets_and_layer_styles() {
         "{error}"
     );
 }
+
+/// Camera errors name the parameter as each source writes it: the query's `x` and
+/// `plan_width`, the body's `camera.…`, the WebSocket's field names, the CLI's flags.
+#[test]
+fn camera_errors_name_the_parameter_as_the_client_wrote_it() {
+    use landsketch::scene::camera_params::{CameraMode, CameraParams};
+    let (scene, _) = loaded();
+    let camera = &scene.default_camera;
+    let outside = CameraParams { position: Some(vec![1.0e6, 0.0]), ..CameraParams::default() };
+    let narrow = CameraParams { mode: Some(CameraMode::Plan), width: Some(0.0), ..CameraParams::default() };
+    let turned = CameraParams { yaw: Some(-4000.0), ..CameraParams::default() };
+    for (source, position, width, yaw) in [
+        (Source::Query, "x", "plan_width", "yaw"),
+        (Source::Body, "camera.position", "camera.width", "camera.yaw"),
+        (Source::Message, "position", "width", "yaw"),
+        (Source::CommandLine, "--pos", "--plan WIDTH", "--yaw"),
+    ] {
+        let error = |params: &CameraParams| params.resolve(camera, scene, source).expect_err("an error").parameter;
+        assert_eq!([error(&outside), error(&narrow), error(&turned)], [position, width, yaw], "{source:?}");
+    }
+    let error = turned.resolve(camera, scene, Source::CommandLine).expect_err("an error");
+    assert_eq!(error.to_string(), "--yaw -4000 is outside -3600..=3600");
+}

@@ -3,8 +3,6 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use landsketch::api::data::{DataRequest, LayerCache};
-use landsketch::api::view::{CameraMode, CameraParams, Source};
 use landsketch::api::{Server, ServerConfig};
 use landsketch::fields::{self, ColorMapName, ColorMapSpec, FieldKind, Legend, LoadOptions, Lut, Mapping};
 use landsketch::gis::CrsDefinition;
@@ -15,7 +13,9 @@ use landsketch::render::style::FrameStyle;
 use landsketch::render::{Gpu, RenderOptions, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
+use landsketch::scene::camera_params::{CameraMode, CameraParams, Source};
 use landsketch::store::Store;
+use landsketch::store::request::{DataRequest, LayerCache};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tracing::info;
@@ -371,9 +371,7 @@ fn camera(args: &RenderArgs, scene: &Scene) -> Result<Camera> {
             roll: args.roll,
             ..CameraParams::default()
         };
-        let resolved =
-            params.resolve(&scene.default_camera, scene, Source::Body).map_err(|e| anyhow::anyhow!("--plan: {e}"))?;
-        return Ok(resolved.camera);
+        return Ok(params.resolve(&scene.default_camera, scene, Source::CommandLine)?.camera);
     }
     let mut camera = scene.default_camera;
     if let Some(pos) = &args.pos {
@@ -469,7 +467,7 @@ fn data_view(args: &RenderArgs) -> Result<DataView> {
     };
     let mappings: Vec<Mapping> = serde_json::from_str(&text).context("--mappings: invalid JSON")?;
     let store = Store::open(&args.data_dir)?;
-    let request = DataRequest::resolve(&mappings, args.time.as_deref(), &store).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let request = DataRequest::resolve(&mappings, args.time.as_deref(), &store)?;
     for warning in &request.warnings {
         tracing::warn!("{warning}");
     }

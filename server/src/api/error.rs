@@ -1,5 +1,7 @@
 //! Typed API errors and their JSON form: `{"error": {"code", "message", "parameter"}}`.
 
+use crate::scene::camera_params::CameraError;
+use crate::store::request::DataError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
@@ -154,5 +156,24 @@ impl IntoResponse for ApiError {
             headers.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
         }
         response
+    }
+}
+
+/// A camera parameter out of range or unusable: a 422 naming it.
+impl From<CameraError> for ApiError {
+    fn from(error: CameraError) -> ApiError {
+        ApiError::Invalid { parameter: Some(error.parameter), message: error.message }
+    }
+}
+
+/// Data layers a view cannot show: an unknown layer is a 404, bad mappings or a bad time a
+/// 422 naming `mappings` or `time`.
+impl From<DataError> for ApiError {
+    fn from(error: DataError) -> ApiError {
+        match &error {
+            DataError::UnknownLayer(_) => ApiError::NotFound(error.to_string()),
+            DataError::Mappings(_) => ApiError::invalid("mappings", error.to_string()),
+            DataError::Time(_) => ApiError::invalid("time", error.to_string()),
+        }
     }
 }

@@ -7,7 +7,6 @@ pub mod artmaps;
 pub mod auth;
 pub mod cache;
 pub mod config;
-pub mod data;
 pub mod error;
 pub mod layers;
 pub mod metrics;

@@ -7,19 +7,19 @@
 //! (`--interactive-scale`, `--interactive-quality`, at most `--max-fps`); after
 //! `--still-delay-ms` of rest the session gets a full-size still in its own format.
 
-use super::data::DataRequest;
 use super::error::{ApiError, ErrorDetail};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
 use super::routes::{CameraInfo, pool_error};
 use super::view::{
-    CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_side,
-    jpeg_quality, parse_layer_styles, parse_style, style_overrides,
+    CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_format,
+    image_side, jpeg_quality, parse_layer_styles, parse_style, style_overrides,
 };
 use super::{AppState, Ready};
 use crate::fields::Mapping;
 use crate::render::Style;
 use crate::scene::camera::Camera;
+use crate::store::request::DataRequest;
 use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade, close_code};
 use axum::extract::{RawQuery, State};
@@ -502,10 +502,12 @@ impl<'a> Session<'a> {
         let applied = match message {
             ClientMessage::Ping { id } => return Some(ServerMessage::Pong { id }),
             ClientMessage::Data { mappings, time } => {
-                DataRequest::resolve(&mappings, time.as_deref(), self.state.store()).map(|data| {
-                    answer = Some(ServerMessage::Data { time: data.time.clone(), warnings: data.warnings.clone() });
-                    self.view.data = data;
-                })
+                DataRequest::resolve(&mappings, time.as_deref(), self.state.store()).map_err(ApiError::from).map(
+                    |data| {
+                        answer = Some(ServerMessage::Data { time: data.time.clone(), warnings: data.warnings.clone() });
+                        self.view.data = data;
+                    },
+                )
             }
             ClientMessage::Camera(params) => self.set_camera(&params),
             ClientMessage::Move(m) => self.move_camera(&m),
@@ -612,7 +614,7 @@ impl<'a> Session<'a> {
     }
 
     fn set_quality(&mut self, format: Option<&str>, quality: Option<u32>) -> Result<(), ApiError> {
-        let format = format.map(|f| ImageFormat::parse(f, "format")).transpose()?.unwrap_or(self.view.format);
+        let format = format.map(|f| image_format(f, "format")).transpose()?.unwrap_or(self.view.format);
         let quality = match quality {
             Some(q) => jpeg_quality(Some(q), "quality")?,
             None => self.view.quality,

@@ -8,6 +8,7 @@ pub mod bake;
 pub mod coherence;
 pub mod device;
 pub mod gbuffer;
+pub mod image_format;
 pub mod parametrization;
 pub mod post;
 pub mod presets;

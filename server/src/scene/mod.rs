@@ -1,6 +1,7 @@
 //! The landscape scene: terrain mesh, plant models, vegetation placement and the scene file.
 
 pub mod camera;
+pub mod camera_params;
 pub mod config;
 pub mod gltf_loader;
 pub mod mesh;
