@@ -7,7 +7,8 @@ mod common;
 
 use common::{assert_matches_reference, fraction, full_detail, gpu, luminance, trees_on_a_plain};
 use landsketch::render::presets::PRESETS;
-use landsketch::render::style::{FrameStyle, TERRAIN_LAYER};
+use landsketch::render::style::{FrameStyle, LayerStyle, TERRAIN_LAYER};
+use landsketch::render::view_style::ViewStyle;
 use landsketch::render::{RenderError, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::Sun;
@@ -206,9 +207,9 @@ fn layers_have_styles_of_their_own_in_one_frame() {
     let (scene, renderer) = sample();
     let camera = scene.default_camera;
     let base = preset("full_npr");
-    let overrides = serde_json::json!({"preset": "photorealism"});
+    let overrides: LayerStyle = serde_json::from_value(serde_json::json!({"preset": "photorealism"})).unwrap();
     let mut mixed = FrameStyle::from(base.clone());
-    mixed.layers.insert("existing".into(), base.layer(overrides.as_object().unwrap()).unwrap());
+    mixed.layers.insert("existing".into(), overrides.resolve(&base).unwrap().style);
     let image = renderer.render(&camera, &mixed, SIZE.0, SIZE.1).unwrap();
     assert_matches_reference(&image, &reference("mixed_existing_planned"), 0.02);
 
@@ -252,12 +253,14 @@ fn layers_have_styles_of_their_own_in_one_frame() {
 
 #[test]
 fn bad_presets_and_values_are_errors_naming_them() {
-    let err = Style::from_preset(Some("winter"), &Default::default()).unwrap_err().to_string();
+    let winter = ViewStyle { preset: Some("winter".into()), ..ViewStyle::default() };
+    let err = winter.resolve(&[]).unwrap_err().to_string();
     for name in ["winter", "photorealism", "van_gogh", "childrens_book"] {
         assert!(err.contains(name), "{err}");
     }
-    let overrides = serde_json::json!({"photorealism": 1.5});
-    let err = Style::from_preset(Some("full_npr"), overrides.as_object().unwrap()).unwrap_err().to_string();
+    let style = serde_json::from_value(serde_json::json!({"photorealism": 1.5})).unwrap();
+    let overrides = ViewStyle { preset: Some("full_npr".into()), style, ..ViewStyle::default() };
+    let err = overrides.resolve(&[]).unwrap_err().to_string();
     assert!(err.contains("photorealism") && err.contains("0..=1"), "{err}");
     let (scene, renderer) = sample();
     let bad = Style { color_saturation: 3.0, ..Style::default() };

@@ -9,13 +9,16 @@ use landsketch::gis::CrsDefinition;
 use landsketch::prep::cache::DiskCache;
 use landsketch::render::presets::PRESETS;
 use landsketch::render::projection::DataView;
-use landsketch::render::style::FrameStyle;
+use landsketch::render::style::{FrameStyle, LayerStyle, PartialStyle};
+use landsketch::render::view_style::{StyleTarget, ViewStyle};
 use landsketch::render::{Gpu, RenderOptions, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
 use landsketch::scene::camera_params::{CameraMode, CameraParams, Source};
 use landsketch::store::Store;
 use landsketch::store::request::{DataRequest, LayerCache};
+use serde::de::DeserializeOwned;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tracing::info;
@@ -300,8 +303,9 @@ fn load_scene(path: &Path) -> Result<Scene> {
     Ok(scene)
 }
 
-/// A JSON object given inline or as the path of a JSON file.
-fn json_object(arg: &str) -> Result<serde_json::Map<String, serde_json::Value>> {
+/// A JSON object given inline or as the path of a JSON file: the style fields of `--style`,
+/// a layer style of `--layer-style`.
+fn json_object<T: DeserializeOwned>(arg: &str) -> Result<T> {
     let text = if arg.trim_start().starts_with('{') {
         arg.to_owned()
     } else {
@@ -310,21 +314,25 @@ fn json_object(arg: &str) -> Result<serde_json::Map<String, serde_json::Value>> 
     serde_json::from_str(&text).with_context(|| format!("invalid style JSON (expected an object): {arg}"))
 }
 
-/// The style of `--preset` with the `--style` overrides merged over it.
-fn parse_style(preset: Option<&str>, arg: Option<&str>) -> Result<Style> {
-    let overrides = arg.map(json_object).transpose()?.unwrap_or_default();
-    Ok(Style::from_preset(preset, &overrides)?)
+/// The styles the flags give: `--preset`, the `--style` fields and every `--layer-style
+/// NAME=JSON|FILE`.
+fn view_style(preset: Option<&str>, style: Option<&str>, layer_styles: &[String]) -> Result<ViewStyle> {
+    let mut layers = BTreeMap::new();
+    for arg in layer_styles {
+        let (name, json) = arg.split_once('=').with_context(|| format!("--layer-style {arg:?}: expected NAME=JSON"))?;
+        let layer: LayerStyle = json_object(json).with_context(|| format!("--layer-style {name}"))?;
+        layers.insert(name.to_owned(), layer);
+    }
+    let style: PartialStyle = style.map(json_object).transpose()?.unwrap_or_default();
+    Ok(ViewStyle { preset: preset.map(str::to_owned), style, layer_styles: layers })
 }
 
-/// The frame's styles: `--preset`/`--style` and every `--layer-style NAME=JSON|FILE`.
-fn frame_style(args: &RenderArgs) -> Result<FrameStyle> {
-    let mut frame = FrameStyle::from(parse_style(args.preset.as_deref(), args.style.as_deref())?);
-    for arg in &args.layer_style {
-        let (name, json) = arg.split_once('=').with_context(|| format!("--layer-style {arg:?}: expected NAME=JSON"))?;
-        let style = frame.base.layer(&json_object(json)?).with_context(|| format!("--layer-style {name}"))?;
-        frame.layers.insert(name.to_owned(), style);
-    }
-    Ok(frame)
+/// The frame's styles of `styles` in `scene` (errors name the flag).
+fn frame_style(styles: &ViewStyle, scene: &Scene) -> Result<FrameStyle> {
+    styles.resolve(&scene.layer_names()).map_err(|e| match &e.target {
+        StyleTarget::View => anyhow::anyhow!("{e}"),
+        StyleTarget::Layer(name) => anyhow::anyhow!("--layer-style {name}: {e}"),
+    })
 }
 
 /// `landsketch presets`: the presets (name and description) or the style schema.
@@ -336,11 +344,18 @@ fn presets(schema: bool, json: bool) {
             }
         }
         (false, true) => {
+            /// A preset as `--json` prints it.
+            #[derive(serde::Serialize)]
+            struct PresetJson {
+                name: &'static str,
+                description: &'static str,
+                style: PartialStyle,
+            }
             let list: Vec<_> = PRESETS
                 .iter()
-                .map(|p| serde_json::json!({"name": p.name, "description": p.description, "style": p.overrides()}))
+                .map(|p| PresetJson { name: p.name, description: p.description, style: p.overrides() })
                 .collect();
-            println!("{}", serde_json::Value::Array(list));
+            println!("{}", serde_json::to_string(&list).unwrap_or_default());
         }
         (true, false) => {
             for f in Style::schema() {
@@ -413,8 +428,9 @@ fn coherence(
 ) -> Result<()> {
     use landsketch::render::coherence::{camera_path, flicker};
     use landsketch::render::style::HatchSpace;
-    let base = parse_style(None, style)?;
+    let styles = view_style(None, style, &[])?;
     let scene = load_scene(scene)?;
+    let base = frame_style(&styles, &scene)?.base;
     let renderer = Renderer::with_options(Arc::new(Gpu::new()?), &scene, &cache.render_options()?)?;
     let path = camera_path(&scene.default_camera, steps);
     let mut rows = Vec::new();
@@ -436,8 +452,9 @@ fn coherence(
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
-    let style = frame_style(args)?;
+    let styles = view_style(args.preset.as_deref(), args.style.as_deref(), &args.layer_style)?;
     let scene = load_scene(&args.scene)?;
+    let style = frame_style(&styles, &scene)?;
     let camera = camera(args, &scene)?;
     let gpu = Arc::new(Gpu::new()?);
     let renderer = Renderer::with_options(gpu, &scene, &args.cache.render_options()?)?;
@@ -607,4 +624,38 @@ fn bench(args: &BenchArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn render_args(args: &[&str]) -> RenderArgs {
+        let cli = Cli::try_parse_from(["landsketch", "render"].iter().chain(args)).unwrap_or_else(|e| panic!("{e}"));
+        match cli.command {
+            Command::Render(args) => args,
+            _ => panic!("not a render command"),
+        }
+    }
+
+    #[test]
+    fn style_flags_give_the_styles_a_request_body_gives() {
+        let args = render_args(&[
+            "--preset",
+            "full_npr",
+            "--style",
+            r#"{"ambient": 0.4}"#,
+            "--layer-style",
+            r#"existing={"preset": "photorealism", "hatch_map": 1}"#,
+        ]);
+        let flags = view_style(args.preset.as_deref(), args.style.as_deref(), &args.layer_style).unwrap();
+        let body = r#"{"preset": "full_npr", "style": {"ambient": 0.4},
+            "layer_styles": {"existing": {"preset": "photorealism", "hatch_map": 1}}}"#;
+        assert_eq!(flags, serde_json::from_str::<ViewStyle>(body).unwrap());
+        let err = view_style(None, None, &[r#"existing={"colour": 1}"#.to_owned()]).unwrap_err();
+        assert!(
+            format!("{err:#}").contains("--layer-style existing") && format!("{err:#}").contains("colour"),
+            "{err:#}"
+        );
+    }
 }

@@ -6,14 +6,15 @@
 
 use super::error::ApiError;
 use crate::fields::Mapping;
-use crate::render::style::{FrameStyle, TERRAIN_LAYER};
-use crate::render::{RenderError, Style};
+use crate::render::Style;
+use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
+use crate::render::view_style::ViewStyle;
 use crate::scene::Scene;
 use crate::scene::camera::{Camera, Projection};
 use crate::store::Store;
 use crate::store::request::DataRequest;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use utoipa::{IntoParams, ToSchema};
@@ -52,13 +53,13 @@ pub struct ViewParams {
     /// Style overrides: a JSON object with any subset of the style fields (README, "Style").
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
-    pub style: Option<Value>,
+    pub style: Option<PartialStyle>,
     /// Styles of single layers (thesis 8.2.8): layer name (`terrain` or a vegetation layer)
     /// → a partial style merged over the view's style, or over `"preset"` when it names one,
     /// e.g. `{"existing": {"preset": "photorealism"}}`.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
-    pub layer_styles: Option<Map<String, Value>>,
+    pub layer_styles: Option<BTreeMap<String, LayerStyle>>,
     /// Data layers shown in the view (D3/D4): up to 3 `{"layer": id, "target": "color" |
     /// "hatch_tone" | "hatch_color" | "hatch_pattern" | "silhouette_style" |
     /// "silhouette_density", "range": [lo, hi], "colormap": name, "opacity": 0..1, "reverse":
@@ -164,20 +165,12 @@ impl ViewParams {
             (None, _, _) => return Err(ApiError::invalid("x", "x is missing: give x and y together (z optionally)")),
             (_, None, _) => return Err(ApiError::invalid("y", "y is missing: give x and y together (z optionally)")),
         };
-        let style = match &q.style {
-            Some(text) => Some(
-                serde_json::from_str(text)
-                    .map_err(|e| ApiError::bad("style", format!("style is not valid JSON: {e}")))?,
-            ),
-            None => None,
-        };
-        let layer_styles =
-            match &q.layer_styles {
-                Some(text) => Some(serde_json::from_str(text).map_err(|e| {
-                    ApiError::bad("layer_styles", format!("layer_styles is not a valid JSON object: {e}"))
-                })?),
-                None => None,
-            };
+        let style = q.style.as_deref().map(|text| query_json("style", text, "valid JSON")).transpose()?;
+        let layer_styles = q
+            .layer_styles
+            .as_deref()
+            .map(|text| query_json("layer_styles", text, "a valid JSON object"))
+            .transpose()?;
         let mappings = match &q.mappings {
             Some(text) => Some(serde_json::from_str(text).map_err(|e| {
                 ApiError::bad("mappings", format!("mappings is not a valid JSON array of mappings: {e}"))
@@ -239,8 +232,8 @@ impl ViewParams {
             format: self.format.clone(),
             quality: self.quality,
             preset: self.preset.clone(),
-            style: self.style.as_ref().map(Value::to_string),
-            layer_styles: self.layer_styles.as_ref().map(|m| Value::Object(m.clone()).to_string()),
+            style: self.style.as_ref().and_then(|s| serde_json::to_string(s).ok()),
+            layer_styles: self.layer_styles.as_ref().and_then(|m| serde_json::to_string(m).ok()),
             mappings: self.mappings.as_ref().and_then(|m| serde_json::to_string(m).ok()),
             time: self.time.clone(),
         };
@@ -267,11 +260,46 @@ impl ViewParams {
         };
         let quality = jpeg_quality(self.quality, "quality")?;
         let quality = (format == ImageFormat::Jpeg).then_some(quality);
-        let style = parse_style(self.preset.as_deref(), self.style.as_ref(), "style")?;
-        let layer_styles = parse_layer_styles(&style, self.layer_styles.as_ref(), scene)?;
+        let styles = self.view_style().resolve(&scene.layer_names())?;
         let data = DataRequest::resolve(self.mappings.as_deref().unwrap_or_default(), self.time.as_deref(), store)?;
-        Ok(ViewRequest { camera, width, height, format, quality, style, layer_styles, data })
+        Ok(ViewRequest {
+            camera,
+            width,
+            height,
+            format,
+            quality,
+            style: styles.base,
+            layer_styles: styles.layers,
+            data,
+        })
     }
+
+    /// The style part of these parameters: preset, fields and layer styles.
+    pub fn view_style(&self) -> ViewStyle {
+        ViewStyle {
+            preset: self.preset.clone(),
+            style: self.style.clone().unwrap_or_default(),
+            layer_styles: self.layer_styles.clone().unwrap_or_default(),
+        }
+    }
+}
+
+/// Parses the JSON text of the query parameter `parameter`: malformed JSON is a 400 saying
+/// it is not `what`; a value of the wrong shape a 422 naming the field (`style.ambient`).
+fn query_json<T: DeserializeOwned>(parameter: &str, text: &str, what: &str) -> Result<T, ApiError> {
+    let mut deserializer = serde_json::Deserializer::from_str(text);
+    let value = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner();
+        if inner.is_data() {
+            let field = if path == "." { parameter.to_owned() } else { format!("{parameter}.{path}") };
+            ApiError::invalid(field, format!("{parameter}: {inner}"))
+        } else {
+            ApiError::bad(parameter, format!("{parameter} is not {what}: {inner}"))
+        }
+    })?;
+    deserializer.end().map_err(|e| ApiError::bad(parameter, format!("{parameter} is not {what}: {e}")))?;
+    Ok(value)
 }
 
 /// Parses an image format name; an unknown one is a 422 naming `parameter` and the supported
@@ -300,77 +328,6 @@ pub fn image_side(parameter: &str, value: u32, max: u32) -> Result<u32, ApiError
     } else {
         Ok(value)
     }
-}
-
-/// A style error as an API error: an unknown preset is a 404 naming it and the known ones;
-/// bad fields are 422s naming the field as `<parameter>.<field>`.
-fn style_error(error: RenderError, parameter: &str) -> ApiError {
-    let message = format!("{parameter}: {error}");
-    match &error {
-        RenderError::UnknownPreset { .. } => ApiError::NotFound(message),
-        RenderError::Style { field, .. } => ApiError::invalid(format!("{parameter}.{field}"), message),
-        RenderError::StyleField { field: Some(field), .. } => {
-            ApiError::invalid(format!("{parameter}.{field}"), message)
-        }
-        _ => ApiError::invalid(parameter, message),
-    }
-}
-
-/// Builds a [`Style`] from an optional preset (404 when unknown) and a JSON object of overrides
-/// merged over it (or over the defaults); errors are 422s naming the field as
-/// `<parameter>.<field>`.
-pub fn parse_style(preset: Option<&str>, overrides: Option<&Value>, parameter: &str) -> Result<Style, ApiError> {
-    let overrides = match overrides {
-        None => &Map::new(),
-        Some(Value::Object(map)) => map,
-        Some(_) => {
-            return Err(ApiError::invalid(parameter, format!("{parameter} must be a JSON object of style fields")));
-        }
-    };
-    Style::from_preset(preset, overrides).map_err(|e| style_error(e, parameter))
-}
-
-/// The per-layer styles of a view: each partial style merged over `base` (or over the preset
-/// it names). A name that is neither `terrain` nor a layer of `scene` is a 422 naming the
-/// known ones.
-pub fn parse_layer_styles(
-    base: &Style,
-    layers: Option<&Map<String, Value>>,
-    scene: &Scene,
-) -> Result<BTreeMap<String, Style>, ApiError> {
-    let mut styles = BTreeMap::new();
-    for (name, partial) in layers.into_iter().flatten() {
-        let parameter = format!("layer_styles.{name}");
-        if name != TERRAIN_LAYER && !scene.layers.iter().any(|l| &l.name == name) {
-            let known: Vec<&str> =
-                std::iter::once(TERRAIN_LAYER).chain(scene.layers.iter().map(|l| l.name.as_str())).collect();
-            let message = format!("{name:?} is not a layer of this scene; layers: {}", known.join(", "));
-            return Err(ApiError::invalid(parameter, message));
-        }
-        let Value::Object(partial) = partial else {
-            return Err(ApiError::invalid(parameter, "a layer style must be a JSON object of style fields"));
-        };
-        styles.insert(name.clone(), base.layer(partial).map_err(|e| style_error(e, &parameter))?);
-    }
-    Ok(styles)
-}
-
-/// `style` as a JSON object. Goes through JSON text so that `f32` fields keep their short
-/// decimal form (0.98, not 0.9800000190734863).
-pub fn style_json(style: &Style) -> Map<String, Value> {
-    style.to_json()
-}
-
-/// The fields of `style` that differ from `base`.
-fn style_diff(style: &Style, base: &Style) -> Map<String, Value> {
-    let base = base.to_json();
-    style.to_json().into_iter().filter(|(k, v)| base.get(k) != Some(v)).collect()
-}
-
-/// The fields of `style` that differ from the default style: the short form of a style in
-/// links.
-pub fn style_overrides(style: &Style) -> Map<String, Value> {
-    style_diff(style, &Style::default())
 }
 
 /// A validated, normalized view: what is rendered, hashed for the ETag and cached. Equal
@@ -408,6 +365,7 @@ impl ViewRequest {
     /// or with [`ViewParams::to_query`] a `GET /api/render` link.
     pub fn to_params(&self) -> ViewParams {
         let c = &self.camera;
+        let styles = ViewStyle::of_frame(&self.frame_style());
         let camera = match c.projection {
             Projection::Perspective => CameraParams {
                 position: Some(c.position.to_vec()),
@@ -433,14 +391,8 @@ impl ViewRequest {
             format: Some(self.format.name().into()),
             quality: self.quality.map(u32::from),
             preset: None,
-            style: Some(style_overrides(&self.style)).filter(|m| !m.is_empty()).map(Value::Object),
-            layer_styles: Some(
-                self.layer_styles
-                    .iter()
-                    .map(|(name, style)| (name.clone(), Value::Object(style_diff(style, &self.style))))
-                    .collect(),
-            )
-            .filter(|m: &Map<String, Value>| !m.is_empty()),
+            style: Some(styles.style).filter(|s| !s.is_empty()),
+            layer_styles: Some(styles.layer_styles).filter(|m| !m.is_empty()),
             mappings: Some(self.data.mappings.clone()).filter(|m| !m.is_empty()),
             time: self.data.time.clone(),
         }

@@ -13,11 +13,12 @@ use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
 use super::routes::{CameraInfo, pool_error};
 use super::view::{
     CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_format,
-    image_side, jpeg_quality, parse_layer_styles, parse_style, style_overrides,
+    image_side, jpeg_quality,
 };
 use super::{AppState, Ready};
 use crate::fields::Mapping;
-use crate::render::Style;
+use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
+use crate::render::view_style::ViewStyle;
 use crate::scene::camera::Camera;
 use crate::store::request::DataRequest;
 use axum::body::Bytes;
@@ -25,7 +26,7 @@ use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade, close_
 use axum::extract::{RawQuery, State};
 use axum::response::Response;
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value};
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -72,14 +73,14 @@ pub enum ClientMessage {
         /// Style fields (README, "Style").
         #[serde(default)]
         #[schema(value_type = Object)]
-        style: Map<String, Value>,
+        style: Box<PartialStyle>,
         /// Style preset the overrides merge over.
         #[serde(default)]
         preset: Option<String>,
         /// Per-layer partial styles: layer name → style fields (or `"preset"`).
         #[serde(default)]
         #[schema(value_type = Object)]
-        layer_styles: Map<String, Value>,
+        layer_styles: BTreeMap<String, LayerStyle>,
         /// Replace all overrides instead of merging.
         #[serde(default)]
         replace: bool,
@@ -319,13 +320,9 @@ struct View {
     camera: Camera,
     /// Eye height above the terrain while walking; `None` while flying.
     eye_height: Option<f32>,
-    style_overrides: Map<String, Value>,
-    /// The preset the style overrides merge over.
-    preset: Option<String>,
-    style: Style,
-    /// Per-layer partial styles (layer name → fields over `style`) and the complete styles.
-    layer_overrides: Map<String, Value>,
-    layer_styles: BTreeMap<String, Style>,
+    /// The styles as the control messages gave them (merged) and as resolved.
+    requested: ViewStyle,
+    styles: FrameStyle,
     width: u32,
     height: u32,
     format: ImageFormat,
@@ -382,11 +379,8 @@ impl<'a> Session<'a> {
             view: View {
                 camera,
                 eye_height,
-                style_overrides: style_overrides(&initial.style),
-                preset: None,
-                layer_overrides: initial.to_params().layer_styles.unwrap_or_default(),
-                layer_styles: initial.layer_styles,
-                style: initial.style,
+                requested: ViewStyle::of_frame(&initial.frame_style()),
+                styles: initial.frame_style(),
                 width: initial.width,
                 height: initial.height,
                 format: initial.format,
@@ -512,7 +506,7 @@ impl<'a> Session<'a> {
             ClientMessage::Camera(params) => self.set_camera(&params),
             ClientMessage::Move(m) => self.move_camera(&m),
             ClientMessage::Style { style, preset, layer_styles, replace } => {
-                self.set_style(style, preset, layer_styles, replace)
+                self.set_style(&ViewStyle { preset, style: *style, layer_styles }, replace)
             }
             ClientMessage::Size { width, height } => self.set_size(width, height),
             ClientMessage::Quality { format, quality } => self.set_quality(format.as_deref(), quality),
@@ -577,31 +571,13 @@ impl<'a> Session<'a> {
         Ok(())
     }
 
-    fn set_style(
-        &mut self,
-        style: Map<String, Value>,
-        preset: Option<String>,
-        layer_styles: Map<String, Value>,
-        replace: bool,
-    ) -> Result<(), ApiError> {
-        let v = &self.view;
-        let (mut overrides, mut layers) =
-            if replace { (Map::new(), Map::new()) } else { (v.style_overrides.clone(), v.layer_overrides.clone()) };
-        let preset = if replace { preset } else { preset.or_else(|| v.preset.clone()) };
-        overrides.extend(style);
-        for (name, fields) in layer_styles {
-            match (layers.get_mut(&name), fields) {
-                (Some(Value::Object(old)), Value::Object(new)) => old.extend(new),
-                (_, fields) => {
-                    layers.insert(name, fields);
-                }
-            }
-        }
-        let base = parse_style(preset.as_deref(), Some(&Value::Object(overrides.clone())), "style")?;
-        let layer_styles = parse_layer_styles(&base, Some(&layers), &self.ready.scene)?;
-        self.view.style_overrides = overrides;
-        (self.view.preset, self.view.style, self.view.layer_overrides) = (preset, base, layers);
-        self.view.layer_styles = layer_styles;
+    /// Merges a `style` control into the session's styles (or replaces them) and resolves
+    /// them.
+    fn set_style(&mut self, change: &ViewStyle, replace: bool) -> Result<(), ApiError> {
+        let mut requested = if replace { ViewStyle::default() } else { self.view.requested.clone() };
+        requested.merge(change);
+        self.view.styles = requested.resolve(&self.ready.scene.layer_names())?;
+        self.view.requested = requested;
         Ok(())
     }
 
@@ -642,8 +618,8 @@ impl<'a> Session<'a> {
                 height,
                 format,
                 quality,
-                style: v.style.clone(),
-                layer_styles: v.layer_styles.clone(),
+                style: v.styles.base.clone(),
+                layer_styles: v.styles.layers.clone(),
                 data: v.data.clone(),
             },
             kind,

@@ -18,6 +18,7 @@ mod readback;
 pub mod renderer;
 pub mod scene_gpu;
 pub mod style;
+pub mod view_style;
 
 pub use device::Gpu;
 pub use renderer::{RenderOptions, Renderer};

@@ -190,6 +190,11 @@ impl Scene {
     pub fn plant_count(&self) -> usize {
         self.layers.iter().map(|l| l.plants.len()).sum()
     }
+
+    /// The names of the vegetation layers, in order (the names per-layer styles use).
+    pub fn layer_names(&self) -> Vec<String> {
+        self.layers.iter().map(|l| l.name.clone()).collect()
+    }
 }
 
 fn load_species(name: &str, config: &SpeciesConfig, base: &Path) -> Result<PlantModel, SceneError> {
