@@ -9,6 +9,7 @@ use super::view::{ImageFormat, RenderQuery, Source, ViewParams, ViewRequest};
 use super::{AppState, Ready};
 use crate::render::presets::PRESETS;
 use crate::render::style::{FieldSchema, PartialStyle};
+use crate::render::view_style::{ResolvedStyles, ViewStyle};
 use crate::render::{RenderError, Style};
 use crate::scene::camera::Camera;
 use axum::Json;
@@ -234,6 +235,27 @@ pub async fn render_post(
     let params: ViewParams = parse_body(body)?;
     let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Body)?;
     render_view(ready, view, &headers).await
+}
+
+/// Resolves the styles of a view as a render does (the defaults, the preset, the fields; each
+/// layer's fields over its own preset or the view's style) and answers every style of the
+/// view: the view's and each layer's of the scene, with what its own fields merge over. The
+/// browser's style panel shows these.
+#[utoipa::path(post, path = "/api/styles/resolve", tag = "render", request_body = ViewStyle,
+    responses(
+        (status = 200, description = "The resolved styles", body = ResolvedStyles),
+        (status = 400, description = "Malformed JSON", body = ErrorBody),
+        (status = 404, description = "Unknown preset", body = ErrorBody),
+        (status = 413, description = "Body larger than the server allows", body = ErrorBody),
+        (status = 422, description = "Unknown layer, value out of range, wrong type or unknown field", body = ErrorBody),
+        (status = 503, description = "The scene is still loading", body = ErrorBody)))]
+pub async fn resolve_styles(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<ResolvedStyles>, ApiError> {
+    let ready = state.ready().ok_or(ApiError::NotReady)?;
+    let styles: ViewStyle = parse_body(body)?;
+    Ok(Json(styles.resolve_all(&ready.scene.layer_names())?))
 }
 
 /// Parses a JSON body: too large a body is a 413, malformed JSON a 400, wrong types or unknown

@@ -17,6 +17,7 @@ use super::view::{
 };
 use super::{AppState, Ready};
 use crate::fields::Mapping;
+use crate::render::Style;
 use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
 use crate::render::view_style::ViewStyle;
 use crate::scene::camera::Camera;
@@ -69,6 +70,7 @@ pub enum ClientMessage {
     /// Changes the style: `style` fields are merged into the session's overrides, a `preset`
     /// becomes the base they merge over, and `layer_styles` fields are merged into each named
     /// layer's overrides (or all of them replace the session's with `replace: true`).
+    /// Answered by a `style` message with the styles the session renders now.
     Style {
         /// Style fields (README, "Style").
         #[serde(default)]
@@ -162,6 +164,16 @@ pub enum ServerMessage {
         render_ms: f32,
         /// The camera of the frame.
         camera: CameraInfo,
+    },
+    /// Answer to a `style` control: the complete styles the session renders from now on, as
+    /// the server resolved them (presets, overrides and layer styles merged).
+    Style {
+        /// The view's style.
+        #[schema(value_type = Object)]
+        style: Style,
+        /// The styles of the layers that have their own, by layer name.
+        #[schema(value_type = Object)]
+        layer_styles: BTreeMap<String, Style>,
     },
     /// Answer to a `data` control: the normalized time and the warnings.
     Data {
@@ -506,7 +518,10 @@ impl<'a> Session<'a> {
             ClientMessage::Camera(params) => self.set_camera(&params),
             ClientMessage::Move(m) => self.move_camera(&m),
             ClientMessage::Style { style, preset, layer_styles, replace } => {
-                self.set_style(&ViewStyle { preset, style: *style, layer_styles }, replace)
+                self.set_style(&ViewStyle { preset, style: *style, layer_styles }, replace).map(|styles| {
+                    answer =
+                        Some(ServerMessage::Style { style: styles.base.clone(), layer_styles: styles.layers.clone() });
+                })
             }
             ClientMessage::Size { width, height } => self.set_size(width, height),
             ClientMessage::Quality { format, quality } => self.set_quality(format.as_deref(), quality),
@@ -572,13 +587,13 @@ impl<'a> Session<'a> {
     }
 
     /// Merges a `style` control into the session's styles (or replaces them) and resolves
-    /// them.
-    fn set_style(&mut self, change: &ViewStyle, replace: bool) -> Result<(), ApiError> {
+    /// them; returns what the session renders now.
+    fn set_style(&mut self, change: &ViewStyle, replace: bool) -> Result<&FrameStyle, ApiError> {
         let mut requested = if replace { ViewStyle::default() } else { self.view.requested.clone() };
         requested.merge(change);
         self.view.styles = requested.resolve(&self.ready.scene.layer_names())?;
         self.view.requested = requested;
-        Ok(())
+        Ok(&self.view.styles)
     }
 
     fn set_size(&mut self, width: u32, height: u32) -> Result<(), ApiError> {
