@@ -202,7 +202,7 @@ struct RenderArgs {
     #[arg(long, default_value_t = 768)]
     height: u32,
     /// Camera position "X,Y" (eye above the terrain) or "X,Y,Z" in scene metres.
-    #[arg(long, value_name = "X,Y[,Z]")]
+    #[arg(long, value_name = "X,Y[,Z]", allow_hyphen_values = true)]
     pos: Option<String>,
     /// Eye height above the terrain in metres when --pos has no Z.
     #[arg(long, default_value_t = 1.7)]
@@ -636,6 +636,19 @@ mod tests {
             Command::Render(args) => args,
             _ => panic!("not a render command"),
         }
+    }
+
+    #[test]
+    fn negative_coordinates_are_values_not_flags() {
+        let args = render_args(&["--pos", "-120,185", "--yaw", "-90", "--pitch", "-12.5", "--roll", "-3"]);
+        assert_eq!(args.pos.as_deref(), Some("-120,185"));
+        assert_eq!((args.yaw, args.pitch, args.roll), (Some(-90.0), Some(-12.5), Some(-3.0)));
+        let args = render_args(&["--pos", "-120,-185,-2"]);
+        assert_eq!(args.pos.as_deref(), Some("-120,-185,-2"));
+        let args = render_args(&["--plan", "-50,-60,400", "--yaw", "-30"]);
+        assert_eq!((args.plan.as_deref(), args.yaw), (Some("-50,-60,400"), Some(-30.0)));
+        let cli = Cli::try_parse_from(["landsketch", "legend", "field.tif", "--range", "-5,5"]).unwrap();
+        assert!(matches!(cli.command, Command::Legend(LegendArgs { range: Some(r), .. }) if r == "-5,5"));
     }
 
     #[test]
