@@ -439,6 +439,23 @@ async fn a_missing_scene_stops_the_server_with_an_error() {
     assert!(error.to_string().contains("no-such-scene.toml"), "{error}");
 }
 
+/// `landsketch serve` prints the address to open in a browser, with the port it bound.
+#[test]
+fn serve_prints_the_address_to_open() {
+    let data = tempfile::tempdir().expect("temp dir");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+        .args(["serve", "--scene", "data/no-such-scene.toml", "--addr", "127.0.0.1:0", "--data-dir"])
+        .arg(data.path())
+        .output()
+        .expect("run landsketch serve");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let url = stdout.lines().find_map(|l| l.strip_prefix("landsketch: open ")).expect("the address line");
+    let port = url.strip_prefix("http://127.0.0.1:").and_then(|rest| rest.strip_suffix("/ in a browser"));
+    assert!(port.and_then(|p| p.parse::<u16>().ok()).is_some_and(|p| p != 0), "{stdout}");
+    // The scene is missing: the server stops with an error after printing the address.
+    assert!(!output.status.success());
+}
+
 // ---------------------------------------------------------------------------------------------
 // WebSocket
 

@@ -535,9 +535,24 @@ fn serve(config: ServerConfig) -> Result<()> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     runtime.block_on(async {
         let server = Server::bind(config).await?;
+        println!("landsketch: open {} in a browser", browser_url(server.local_addr()?));
         server.run(shutdown_signal()).await?;
         Ok(())
     })
+}
+
+/// The address of the browser UI of a server listening on `addr`: a server listening on every
+/// interface (`0.0.0.0`, `::`) is opened on the loopback address.
+fn browser_url(addr: std::net::SocketAddr) -> String {
+    let mut addr = addr;
+    if addr.ip().is_unspecified() {
+        let loopback: std::net::IpAddr = match addr {
+            std::net::SocketAddr::V4(_) => std::net::Ipv4Addr::LOCALHOST.into(),
+            std::net::SocketAddr::V6(_) => std::net::Ipv6Addr::LOCALHOST.into(),
+        };
+        addr.set_ip(loopback);
+    }
+    format!("http://{addr}/")
 }
 
 /// Completes on SIGINT (Ctrl-C) or SIGTERM.
@@ -670,5 +685,13 @@ mod tests {
             format!("{err:#}").contains("--layer-style existing") && format!("{err:#}").contains("colour"),
             "{err:#}"
         );
+    }
+
+    #[test]
+    fn the_browser_url_is_the_bound_address_or_loopback() {
+        assert_eq!(browser_url("127.0.0.1:8080".parse().unwrap()), "http://127.0.0.1:8080/");
+        assert_eq!(browser_url("0.0.0.0:9000".parse().unwrap()), "http://127.0.0.1:9000/");
+        assert_eq!(browser_url("[::]:9000".parse().unwrap()), "http://[::1]:9000/");
+        assert_eq!(browser_url("192.168.1.5:80".parse().unwrap()), "http://192.168.1.5:80/");
     }
 }
