@@ -510,6 +510,23 @@ async fn a_missing_scene_stops_the_server_with_an_error() {
     assert!(error.to_string().contains("no-such-scene.toml"), "{error}");
 }
 
+/// `landsketch serve` prints the address to open in a browser, with the port it bound.
+#[test]
+fn serve_prints_the_address_to_open() {
+    let data = tempfile::tempdir().expect("temp dir");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+        .args(["serve", "--scene", "data/no-such-scene.toml", "--addr", "127.0.0.1:0", "--data-dir"])
+        .arg(data.path())
+        .output()
+        .expect("run landsketch serve");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let url = stdout.lines().find_map(|l| l.strip_prefix("landsketch: open ")).expect("the address line");
+    let port = url.strip_prefix("http://127.0.0.1:").and_then(|rest| rest.strip_suffix("/ in a browser"));
+    assert!(port.and_then(|p| p.parse::<u16>().ok()).is_some_and(|p| p != 0), "{stdout}");
+    // The scene is missing: the server stops with an error after printing the address.
+    assert!(!output.status.success());
+}
+
 // ---------------------------------------------------------------------------------------------
 // WebSocket
 
@@ -746,7 +763,8 @@ async fn presets_schema_and_layer_styles_over_rest() {
         (photo["min"].as_f64(), photo["max"].as_f64(), photo["default"].as_f64()),
         (Some(0.0), Some(1.0), Some(0.0))
     );
-    assert_eq!(schema.len(), Style::default().to_json().len());
+    let fields = serde_json::to_value(Style::default()).expect("JSON");
+    assert_eq!(schema.len(), fields.as_object().map_or(0, |f| f.len()));
 
     // A preset renders; style fields merge over it; a view link keeps it.
     let photo = get(&server.url(&format!("/api/render?{VIEW}&preset=photorealism"))).await;
@@ -821,4 +839,110 @@ async fn websocket_style_messages_take_presets_and_layer_styles() {
         (Some("error"), Some("layer_styles.meadow")),
         "{error}"
     );
+}
+
+/// The styles of one view resolve to the same complete styles whichever way they come: as a
+/// rendered view (`ViewParams::normalize`, what `GET`/`POST /api/render` render), as
+/// `POST /api/styles/resolve` (what the browser's style panel shows) and as a WebSocket `style`
+/// control (answered with the styles the session renders).
+#[tokio::test]
+async fn styles_resolve_alike_over_rest_and_websocket() {
+    let server = TestServer::shared();
+    let styles = json!({
+        "preset": "full_npr",
+        "style": {"ambient": 0.4, "ink": [0.1, 0.2, 0.3]},
+        "layer_styles": {"existing": {"preset": "photorealism", "sky": 0.5}, "terrain": {"hatch_map": 1}},
+    });
+    let (scene, _) = loaded();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let store = &landsketch::store::Store::open(dir.path()).expect("store");
+    let params: ViewParams = serde_json::from_value(styles.clone()).expect("view parameters");
+    let limits = Limits { max_width: 2048, max_height: 2048 };
+    let view = params.normalize(scene, store, limits, Source::Body).expect("valid view");
+    let style = |value: &Value| -> Style { serde_json::from_value(value.clone()).expect("a complete style") };
+
+    let response = post(&server.url("/api/styles/resolve"), styles.to_string()).await;
+    assert_eq!(response.status(), StatusCode::OK);
+    let resolved = json_of(response).await;
+    assert_eq!(style(&resolved["view"]["style"]), view.style);
+    assert_eq!(style(&resolved["view"]["base"]), landsketch::render::presets::preset("full_npr").expect("preset"));
+    let layers = resolved["layers"].as_object().expect("layers");
+    assert_eq!(layers.keys().collect::<Vec<_>>(), ["existing", "planned", "terrain"]);
+    for (name, own) in &view.layer_styles {
+        assert_eq!(&style(&layers[name]["style"]), own, "{name}");
+    }
+    assert_eq!(
+        style(&layers["existing"]["base"]),
+        landsketch::render::presets::preset("photorealism").expect("preset")
+    );
+    assert_eq!(style(&layers["terrain"]["base"]), view.style, "a layer without a preset starts from the view's style");
+    assert_eq!(style(&layers["planned"]["style"]), view.style, "a layer without a style of its own has the view's");
+
+    let mut socket = connect(server, "width=96&height=72").await;
+    let mut message = styles.clone();
+    message["type"] = json!("style");
+    message["replace"] = json!(true);
+    send(&mut socket, message).await;
+    let answer = loop {
+        match receive(&mut socket).await {
+            Incoming::Json(v) if v["type"] == "style" => break v,
+            Incoming::Closed(reason) => panic!("closed: {reason:?}"),
+            _ => {}
+        }
+    };
+    assert_eq!(style(&answer["style"]), view.style);
+    let answered = answer["layer_styles"].as_object().expect("layer styles");
+    assert_eq!(answered.len(), view.layer_styles.len());
+    for (name, own) in &view.layer_styles {
+        assert_eq!(&style(&answered[name]), own, "{name}");
+    }
+
+    // Errors name the field, the layer or the preset as rendering does.
+    let url = server.url("/api/styles/resolve");
+    assert_error(post(&url, r#"{"style": {"ambient": 2}}"#).await, 422, "invalid_parameter", Some("style.ambient"))
+        .await;
+    assert_error(
+        post(&url, r#"{"style": {"ambient": "dark"}}"#).await,
+        422,
+        "invalid_parameter",
+        Some("style.ambient"),
+    )
+    .await;
+    let body = r#"{"layer_styles": {"planned": {"color": 5}}}"#;
+    assert_error(post(&url, body).await, 422, "invalid_parameter", Some("layer_styles.planned.color")).await;
+    let body = assert_error(
+        post(&url, r#"{"layer_styles": {"meadow": {}}}"#).await,
+        422,
+        "invalid_parameter",
+        Some("layer_styles.meadow"),
+    )
+    .await;
+    assert!(body["error"]["message"].as_str().is_some_and(|m| m.contains("existing")), "{body}");
+    let body = assert_error(post(&url, r#"{"preset": "winter"}"#).await, 404, "not_found", None).await;
+    assert!(body["error"]["message"].as_str().is_some_and(|m| m.contains("van_gogh")), "{body}");
+    assert_error(post(&url, r#"{"colour": {}}"#).await, 422, "invalid_parameter", None).await;
+    assert_error(post(&url, "{not json").await, 400, "bad_request", None).await;
+}
+
+/// Camera errors name the parameter as each source writes it: the query's `x` and
+/// `plan_width`, the body's `camera.…`, the WebSocket's field names, the CLI's flags.
+#[test]
+fn camera_errors_name_the_parameter_as_the_client_wrote_it() {
+    use landsketch::scene::camera_params::{CameraMode, CameraParams};
+    let (scene, _) = loaded();
+    let camera = &scene.default_camera;
+    let outside = CameraParams { position: Some(vec![1.0e6, 0.0]), ..CameraParams::default() };
+    let narrow = CameraParams { mode: Some(CameraMode::Plan), width: Some(0.0), ..CameraParams::default() };
+    let turned = CameraParams { yaw: Some(-4000.0), ..CameraParams::default() };
+    for (source, position, width, yaw) in [
+        (Source::Query, "x", "plan_width", "yaw"),
+        (Source::Body, "camera.position", "camera.width", "camera.yaw"),
+        (Source::Message, "position", "width", "yaw"),
+        (Source::CommandLine, "--pos", "--plan WIDTH", "--yaw"),
+    ] {
+        let error = |params: &CameraParams| params.resolve(camera, scene, source).expect_err("an error").parameter;
+        assert_eq!([error(&outside), error(&narrow), error(&turned)], [position, width, yaw], "{source:?}");
+    }
+    let error = turned.resolve(camera, scene, Source::CommandLine).expect_err("an error");
+    assert_eq!(error.to_string(), "--yaw -4000 is outside -3600..=3600");
 }

@@ -60,3 +60,16 @@ export async function putArtMap(kind, index, png) {
 export async function deleteArtMap(kind, index) {
   await request(`/api/artmaps/${kind}/${index}`, { method: 'DELETE' });
 }
+
+/**
+ * The styles of a view as the server resolves them (`POST /api/styles/resolve`): `styles` is
+ * `{preset, style, layer_styles}`; the answer has, for the view and each layer, its complete
+ * `style` and the `base` its own fields merge over.
+ */
+export async function resolveStyles(styles) {
+  return getJSON('/api/styles/resolve', {
+    method: 'POST',
+    headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify(styles),
+  });
+}

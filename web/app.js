@@ -1,7 +1,7 @@
 // The landsketch viewer: a WebSocket session shows the landscape, the panels change the view,
 // and the page's address always holds the view as `GET /api/render` parameters.
 
-import { ApiError, deleteLayer, getBlob, getJSON } from './api.js';
+import { ApiError, deleteLayer, getBlob, getJSON, resolveStyles } from './api.js';
 import { ArtMapsPanel } from './artmaps.js';
 import { Connection, statsText } from './connection.js';
 import { DataPanel } from './data-panel.js';
@@ -235,7 +235,7 @@ async function copyLink() {
  */
 function setupStyle() {
   const scene = app.scene;
-  const model = new StyleModel(scene.default_style, scene.presets);
+  const model = new StyleModel(resolveStyles);
   const target = $('style-target');
   for (const name of ['terrain', ...scene.layers.map((l) => l.name)]) target.append(new Option(name, name));
   const preset = $('preset');
@@ -244,11 +244,22 @@ function setupStyle() {
     model.set(app.view, target.value, name, value);
     changed('style');
   });
-  const refresh = () => {
+  /** Shows the chosen preset and the fields as last resolved. */
+  const show = () => {
     const chosen = model.presetOf(app.view, target.value);
     preset.value = chosen;
     $('preset-description').textContent = scene.presets.find((p) => p.name === chosen)?.description ?? '';
-    panel.show(model.styleOf(app.view, target.value));
+    panel.show(model.styleOf(target.value));
+    app.art?.showChosen();
+  };
+  /** Shows the edited style now and again once the server has resolved the view's styles. */
+  const refresh = async () => {
+    show();
+    try {
+      if (await model.refresh(app.view)) show();
+    } catch (error) {
+      say(`Cannot show the style: ${error.message}`);
+    }
   };
   target.addEventListener('change', refresh);
   preset.addEventListener('change', () => {
@@ -265,11 +276,11 @@ function setupStyle() {
   app.styles = {
     refresh,
     /** The edited style's value of field `name`. */
-    get: (name) => model.styleOf(app.view, target.value)[name],
+    get: (name) => model.styleOf(target.value)[name],
     /** Sets field `name` of the edited style. */
     set: (name, value) => {
       model.set(app.view, target.value, name, value);
-      refresh();
+      show();
       changed('style');
     },
   };

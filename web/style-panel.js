@@ -2,7 +2,10 @@
 // name, kind, default, min, max, doc per field): sliders for numbers, check boxes, selects for
 // enumerations and art maps, colour pickers. The panel edits one style at a time — the view's
 // (a preset and overrides) or one layer's (`layer_styles`: its own preset or fields over the
-// view's style) — and `StyleModel` keeps those edits as the short overrides a link carries.
+// view's style) — and `StyleModel` keeps those edits as the short overrides a link carries and
+// shows the styles the server resolves from them (`POST /api/styles/resolve`).
+
+import { styleMessage } from './link.js';
 
 /** Fields shown first, open: the style axes of issue #8 where the schema has them. */
 const MAIN = [
@@ -218,19 +221,19 @@ export class StylePanel {
 }
 
 /**
- * The styles of a view as the server composes them: defaults, then the view's preset, then its
- * overrides; a layer's style starts from its own preset or from the view's style. `target` is
+ * The styles of a view: the edits (`view.preset`, `view.style`, `view.layerStyles`) and what the
+ * server resolved from them — for the view and each layer its complete `style` and the `base`
+ * its own fields merge over. The server owns the merge rules; the model only asks. `target` is
  * `''` for the view's style or a layer name.
  */
 export class StyleModel {
-  /** `defaults`: every field's default; `presets`: `[{name, description, style}]`. */
-  constructor(defaults, presets) {
-    this.defaults = defaults;
-    this.presets = new Map(presets.map((p) => [p.name, p]));
-  }
-
-  presetStyle(name) {
-    return { ...this.defaults, ...(this.presets.get(name)?.style ?? {}) };
+  /** `resolve(styles)`: the server's resolution of `{preset, style, layer_styles}`. */
+  constructor(resolve) {
+    this.resolve = resolve;
+    this.resolved = null;
+    /** Edits so far, and the newest `refresh`: answers older than either are not shown. */
+    this.edits = 0;
+    this.asked = 0;
   }
 
   /** The preset of `target` in `view` (`''` for none). */
@@ -238,28 +241,43 @@ export class StyleModel {
     return (target ? view.layerStyles[target]?.preset : view.preset) ?? '';
   }
 
-  /** The style `target`'s own fields are relative to. */
-  baseOf(view, target) {
-    const preset = this.presetOf(view, target);
-    if (preset) return this.presetStyle(preset);
-    return target ? this.styleOf(view, '') : { ...this.defaults };
+  /** What the server resolved for `target` (`{base, style}`), `null` before its first answer. */
+  resolvedOf(target) {
+    return (target ? this.resolved?.layers[target] : this.resolved?.view) ?? null;
   }
 
-  /** The fields `target` sets itself. */
-  fieldsOf(view, target) {
-    if (!target) return view.style;
-    const { preset, ...fields } = view.layerStyles[target] ?? {};
-    return fields;
+  /** Every field's value for `target` as last resolved (nothing before the first answer). */
+  styleOf(target) {
+    return this.resolvedOf(target)?.style ?? {};
   }
 
-  /** Every field's value for `target`. */
-  styleOf(view, target) {
-    return { ...this.baseOf(view, target), ...this.fieldsOf(view, target) };
+  /**
+   * Asks the server for the styles of `view` until an answer covers the latest edits; true
+   * when it is shown, false when a newer `refresh` took over.
+   */
+  async refresh(view) {
+    const ticket = ++this.asked;
+    for (;;) {
+      const edits = this.edits;
+      const { type, replace, ...styles } = styleMessage(view);
+      const resolved = await this.resolve(styles);
+      if (ticket !== this.asked) return false;
+      if (edits === this.edits) {
+        this.resolved = resolved;
+        return true;
+      }
+    }
   }
 
-  /** Sets one field of `target`; a value equal to its base is dropped from the overrides. */
+  /**
+   * Sets one field of `target`; a value equal to what its fields merge over is dropped from the
+   * overrides. The field shows the value at once.
+   */
   set(view, target, name, value) {
-    const same = JSON.stringify(value) === JSON.stringify(this.baseOf(view, target)[name]);
+    this.edits += 1;
+    const shown = this.resolvedOf(target);
+    const same = shown != null && JSON.stringify(value) === JSON.stringify(shown.base[name]);
+    if (shown) shown.style[name] = value;
     if (!target) {
       if (same) delete view.style[name];
       else view.style[name] = value;
@@ -273,6 +291,7 @@ export class StyleModel {
 
   /** Chooses the preset of `target` (`''`: none); its own fields start afresh. */
   setPreset(view, target, preset) {
+    this.edits += 1;
     if (!target) {
       view.preset = preset;
       view.style = {};

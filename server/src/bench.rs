@@ -172,7 +172,7 @@ fn walk(scene: &Scene, frames: usize, step: f32) -> Vec<Camera> {
 
 /// Encodes a frame as the server does (JPEG, quality 80); returns its size in bytes.
 fn encode_jpeg(image: &image::RgbaImage) -> Result<usize, image::ImageError> {
-    Ok(crate::api::view::ImageFormat::Jpeg.encode(image, Some(80))?.len())
+    Ok(crate::render::image_format::ImageFormat::Jpeg.encode(image, Some(80))?.len())
 }
 
 /// Peak resident set size of this process in MiB (Linux; 0 elsewhere).

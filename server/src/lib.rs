@@ -2,9 +2,12 @@
 //! sketches.
 //!
 //! Data flows one way: [`gis`] (rasters, CRS, DEM, land cover) → [`scene`] (terrain mesh,
-//! plant models, vegetation placement, scene file) → [`render`] (device, G-buffer pass, post
-//! passes, style). Environment data layers: [`fields`] (scalar/label fields, time series,
-//! reprojection onto the scene, colour maps, legends, mappings) kept by [`store`].
+//! plant models, vegetation placement, scene file, camera parameters) → [`prep`] → [`render`]
+//! (device, G-buffer pass, post passes, styles, image formats) → [`api`] (HTTP and WebSocket,
+//! which maps the domain's errors to status codes). Environment data layers: [`fields`]
+//! (scalar/label fields, time series, reprojection onto the scene, colour maps, legends,
+//! mappings) kept by [`store`], which also checks the data layers a view asks for. No module
+//! but `api` knows HTTP; the CLI calls the same domain functions as the server.
 
 pub mod api;
 pub mod bench;

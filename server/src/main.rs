@@ -3,19 +3,22 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use landsketch::api::data::{DataRequest, LayerCache};
-use landsketch::api::view::{CameraMode, CameraParams, Source};
 use landsketch::api::{Server, ServerConfig};
 use landsketch::fields::{self, ColorMapName, ColorMapSpec, FieldKind, Legend, LoadOptions, Lut, Mapping};
 use landsketch::gis::CrsDefinition;
 use landsketch::prep::cache::DiskCache;
 use landsketch::render::presets::PRESETS;
 use landsketch::render::projection::DataView;
-use landsketch::render::style::FrameStyle;
+use landsketch::render::style::{FrameStyle, LayerStyle, PartialStyle};
+use landsketch::render::view_style::{StyleTarget, ViewStyle};
 use landsketch::render::{FrameRequest, Gpu, RenderOptions, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::Camera;
+use landsketch::scene::camera_params::{CameraMode, CameraParams, Source};
 use landsketch::store::Store;
+use landsketch::store::request::{DataRequest, LayerCache};
+use serde::de::DeserializeOwned;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tracing::info;
@@ -199,7 +202,7 @@ struct RenderArgs {
     #[arg(long, default_value_t = 768)]
     height: u32,
     /// Camera position "X,Y" (eye above the terrain) or "X,Y,Z" in scene metres.
-    #[arg(long, value_name = "X,Y[,Z]")]
+    #[arg(long, value_name = "X,Y[,Z]", allow_hyphen_values = true)]
     pos: Option<String>,
     /// Eye height above the terrain in metres when --pos has no Z.
     #[arg(long, default_value_t = 1.7)]
@@ -300,8 +303,9 @@ fn load_scene(path: &Path) -> Result<Scene> {
     Ok(scene)
 }
 
-/// A JSON object given inline or as the path of a JSON file.
-fn json_object(arg: &str) -> Result<serde_json::Map<String, serde_json::Value>> {
+/// A JSON object given inline or as the path of a JSON file: the style fields of `--style`,
+/// a layer style of `--layer-style`.
+fn json_object<T: DeserializeOwned>(arg: &str) -> Result<T> {
     let text = if arg.trim_start().starts_with('{') {
         arg.to_owned()
     } else {
@@ -310,21 +314,25 @@ fn json_object(arg: &str) -> Result<serde_json::Map<String, serde_json::Value>> 
     serde_json::from_str(&text).with_context(|| format!("invalid style JSON (expected an object): {arg}"))
 }
 
-/// The style of `--preset` with the `--style` overrides merged over it.
-fn parse_style(preset: Option<&str>, arg: Option<&str>) -> Result<Style> {
-    let overrides = arg.map(json_object).transpose()?.unwrap_or_default();
-    Ok(Style::from_preset(preset, &overrides)?)
+/// The styles the flags give: `--preset`, the `--style` fields and every `--layer-style
+/// NAME=JSON|FILE`.
+fn view_style(preset: Option<&str>, style: Option<&str>, layer_styles: &[String]) -> Result<ViewStyle> {
+    let mut layers = BTreeMap::new();
+    for arg in layer_styles {
+        let (name, json) = arg.split_once('=').with_context(|| format!("--layer-style {arg:?}: expected NAME=JSON"))?;
+        let layer: LayerStyle = json_object(json).with_context(|| format!("--layer-style {name}"))?;
+        layers.insert(name.to_owned(), layer);
+    }
+    let style: PartialStyle = style.map(json_object).transpose()?.unwrap_or_default();
+    Ok(ViewStyle { preset: preset.map(str::to_owned), style, layer_styles: layers })
 }
 
-/// The frame's styles: `--preset`/`--style` and every `--layer-style NAME=JSON|FILE`.
-fn frame_style(args: &RenderArgs) -> Result<FrameStyle> {
-    let mut frame = FrameStyle::from(parse_style(args.preset.as_deref(), args.style.as_deref())?);
-    for arg in &args.layer_style {
-        let (name, json) = arg.split_once('=').with_context(|| format!("--layer-style {arg:?}: expected NAME=JSON"))?;
-        let style = frame.base.layer(&json_object(json)?).with_context(|| format!("--layer-style {name}"))?;
-        frame.layers.insert(name.to_owned(), style);
-    }
-    Ok(frame)
+/// The frame's styles of `styles` in `scene` (errors name the flag).
+fn frame_style(styles: &ViewStyle, scene: &Scene) -> Result<FrameStyle> {
+    styles.resolve(&scene.layer_names()).map_err(|e| match &e.target {
+        StyleTarget::View => anyhow::anyhow!("{e}"),
+        StyleTarget::Layer(name) => anyhow::anyhow!("--layer-style {name}: {e}"),
+    })
 }
 
 /// `landsketch presets`: the presets (name and description) or the style schema.
@@ -336,11 +344,18 @@ fn presets(schema: bool, json: bool) {
             }
         }
         (false, true) => {
+            /// A preset as `--json` prints it.
+            #[derive(serde::Serialize)]
+            struct PresetJson {
+                name: &'static str,
+                description: &'static str,
+                style: PartialStyle,
+            }
             let list: Vec<_> = PRESETS
                 .iter()
-                .map(|p| serde_json::json!({"name": p.name, "description": p.description, "style": p.overrides()}))
+                .map(|p| PresetJson { name: p.name, description: p.description, style: p.overrides() })
                 .collect();
-            println!("{}", serde_json::Value::Array(list));
+            println!("{}", serde_json::to_string(&list).unwrap_or_default());
         }
         (true, false) => {
             for f in Style::schema() {
@@ -371,9 +386,7 @@ fn camera(args: &RenderArgs, scene: &Scene) -> Result<Camera> {
             roll: args.roll,
             ..CameraParams::default()
         };
-        let resolved =
-            params.resolve(&scene.default_camera, scene, Source::Body).map_err(|e| anyhow::anyhow!("--plan: {e}"))?;
-        return Ok(resolved.camera);
+        return Ok(params.resolve(&scene.default_camera, scene, Source::CommandLine)?.camera);
     }
     let mut camera = scene.default_camera;
     if let Some(pos) = &args.pos {
@@ -415,8 +428,9 @@ fn coherence(
 ) -> Result<()> {
     use landsketch::render::coherence::{camera_path, flicker};
     use landsketch::render::style::HatchSpace;
-    let base = parse_style(None, style)?;
+    let styles = view_style(None, style, &[])?;
     let scene = load_scene(scene)?;
+    let base = frame_style(&styles, &scene)?.base;
     let renderer = Renderer::with_options(Arc::new(Gpu::new()?), &scene, &cache.render_options()?)?;
     let path = camera_path(&scene.default_camera, steps);
     let mut rows = Vec::new();
@@ -438,8 +452,9 @@ fn coherence(
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
-    let style = frame_style(args)?;
+    let styles = view_style(args.preset.as_deref(), args.style.as_deref(), &args.layer_style)?;
     let scene = load_scene(&args.scene)?;
+    let style = frame_style(&styles, &scene)?;
     let camera = camera(args, &scene)?;
     let gpu = Arc::new(Gpu::new()?);
     let renderer = Renderer::with_options(gpu, &scene, &args.cache.render_options()?)?;
@@ -469,7 +484,7 @@ fn data_view(args: &RenderArgs) -> Result<DataView> {
     };
     let mappings: Vec<Mapping> = serde_json::from_str(&text).context("--mappings: invalid JSON")?;
     let store = Store::open(&args.data_dir)?;
-    let request = DataRequest::resolve(&mappings, args.time.as_deref(), &store).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let request = DataRequest::resolve(&mappings, args.time.as_deref(), &store)?;
     for warning in &request.warnings {
         tracing::warn!("{warning}");
     }
@@ -520,9 +535,24 @@ fn serve(config: ServerConfig) -> Result<()> {
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     runtime.block_on(async {
         let server = Server::bind(config).await?;
+        println!("landsketch: open {} in a browser", browser_url(server.local_addr()?));
         server.run(shutdown_signal()).await?;
         Ok(())
     })
+}
+
+/// The address of the browser UI of a server listening on `addr`: a server listening on every
+/// interface (`0.0.0.0`, `::`) is opened on the loopback address.
+fn browser_url(addr: std::net::SocketAddr) -> String {
+    let mut addr = addr;
+    if addr.ip().is_unspecified() {
+        let loopback: std::net::IpAddr = match addr {
+            std::net::SocketAddr::V4(_) => std::net::Ipv4Addr::LOCALHOST.into(),
+            std::net::SocketAddr::V6(_) => std::net::Ipv6Addr::LOCALHOST.into(),
+        };
+        addr.set_ip(loopback);
+    }
+    format!("http://{addr}/")
 }
 
 /// Completes on SIGINT (Ctrl-C) or SIGTERM.
@@ -609,4 +639,59 @@ fn bench(args: &BenchArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn render_args(args: &[&str]) -> RenderArgs {
+        let cli = Cli::try_parse_from(["landsketch", "render"].iter().chain(args)).unwrap_or_else(|e| panic!("{e}"));
+        match cli.command {
+            Command::Render(args) => args,
+            _ => panic!("not a render command"),
+        }
+    }
+
+    #[test]
+    fn negative_coordinates_are_values_not_flags() {
+        let args = render_args(&["--pos", "-120,185", "--yaw", "-90", "--pitch", "-12.5", "--roll", "-3"]);
+        assert_eq!(args.pos.as_deref(), Some("-120,185"));
+        assert_eq!((args.yaw, args.pitch, args.roll), (Some(-90.0), Some(-12.5), Some(-3.0)));
+        let args = render_args(&["--pos", "-120,-185,-2"]);
+        assert_eq!(args.pos.as_deref(), Some("-120,-185,-2"));
+        let args = render_args(&["--plan", "-50,-60,400", "--yaw", "-30"]);
+        assert_eq!((args.plan.as_deref(), args.yaw), (Some("-50,-60,400"), Some(-30.0)));
+        let cli = Cli::try_parse_from(["landsketch", "legend", "field.tif", "--range", "-5,5"]).unwrap();
+        assert!(matches!(cli.command, Command::Legend(LegendArgs { range: Some(r), .. }) if r == "-5,5"));
+    }
+
+    #[test]
+    fn style_flags_give_the_styles_a_request_body_gives() {
+        let args = render_args(&[
+            "--preset",
+            "full_npr",
+            "--style",
+            r#"{"ambient": 0.4}"#,
+            "--layer-style",
+            r#"existing={"preset": "photorealism", "hatch_map": 1}"#,
+        ]);
+        let flags = view_style(args.preset.as_deref(), args.style.as_deref(), &args.layer_style).unwrap();
+        let body = r#"{"preset": "full_npr", "style": {"ambient": 0.4},
+            "layer_styles": {"existing": {"preset": "photorealism", "hatch_map": 1}}}"#;
+        assert_eq!(flags, serde_json::from_str::<ViewStyle>(body).unwrap());
+        let err = view_style(None, None, &[r#"existing={"colour": 1}"#.to_owned()]).unwrap_err();
+        assert!(
+            format!("{err:#}").contains("--layer-style existing") && format!("{err:#}").contains("colour"),
+            "{err:#}"
+        );
+    }
+
+    #[test]
+    fn the_browser_url_is_the_bound_address_or_loopback() {
+        assert_eq!(browser_url("127.0.0.1:8080".parse().unwrap()), "http://127.0.0.1:8080/");
+        assert_eq!(browser_url("0.0.0.0:9000".parse().unwrap()), "http://127.0.0.1:9000/");
+        assert_eq!(browser_url("[::]:9000".parse().unwrap()), "http://[::1]:9000/");
+        assert_eq!(browser_url("192.168.1.5:80".parse().unwrap()), "http://192.168.1.5:80/");
+    }
 }

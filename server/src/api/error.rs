@@ -1,5 +1,9 @@
 //! Typed API errors and their JSON form: `{"error": {"code", "message", "parameter"}}`.
 
+use crate::render::RenderError;
+use crate::render::view_style::{StyleError, StyleTarget};
+use crate::scene::camera_params::CameraError;
+use crate::store::request::DataError;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
@@ -154,5 +158,42 @@ impl IntoResponse for ApiError {
             headers.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
         }
         response
+    }
+}
+
+/// A camera parameter out of range or unusable: a 422 naming it.
+impl From<CameraError> for ApiError {
+    fn from(error: CameraError) -> ApiError {
+        ApiError::Invalid { parameter: Some(error.parameter), message: error.message }
+    }
+}
+
+/// A style that cannot be resolved: an unknown preset is a 404 naming it and the known ones;
+/// an unknown layer or a value out of range a 422 naming it as `style.<field>`,
+/// `layer_styles.<layer>` or `layer_styles.<layer>.<field>`.
+impl From<StyleError> for ApiError {
+    fn from(error: StyleError) -> ApiError {
+        let parameter = match &error.target {
+            StyleTarget::View => "style".to_owned(),
+            StyleTarget::Layer(name) => format!("layer_styles.{name}"),
+        };
+        let message = format!("{parameter}: {}", error.error);
+        match &error.error {
+            RenderError::UnknownPreset { .. } => ApiError::NotFound(message),
+            RenderError::Style { field, .. } => ApiError::invalid(format!("{parameter}.{field}"), message),
+            _ => ApiError::invalid(parameter, message),
+        }
+    }
+}
+
+/// Data layers a view cannot show: an unknown layer is a 404, bad mappings or a bad time a
+/// 422 naming `mappings` or `time`.
+impl From<DataError> for ApiError {
+    fn from(error: DataError) -> ApiError {
+        match &error {
+            DataError::UnknownLayer(_) => ApiError::NotFound(error.to_string()),
+            DataError::Mappings(_) => ApiError::invalid("mappings", error.to_string()),
+            DataError::Time(_) => ApiError::invalid("time", error.to_string()),
+        }
     }
 }

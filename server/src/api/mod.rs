@@ -7,7 +7,6 @@ pub mod artmaps;
 pub mod auth;
 pub mod cache;
 pub mod config;
-pub mod data;
 pub mod error;
 pub mod layers;
 pub mod metrics;
@@ -183,6 +182,7 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         .route("/api/health", get(routes::health))
         .route("/api/scene", get(routes::scene))
         .route("/api/render", get(routes::render_get).post(routes::render_post))
+        .route("/api/styles/resolve", post(routes::resolve_styles))
         .route("/api/cache/clear", post(routes::cache_clear))
         .route("/api/layers", get(layers::list).post(layers::upload).layer(DefaultBodyLimit::max(config.max_upload)))
         .route("/api/layers/{id}", get(layers::get).delete(layers::delete))

@@ -17,6 +17,7 @@ use utoipa::{Modify, OpenApi};
         routes::scene,
         routes::render_get,
         routes::render_post,
+        routes::resolve_styles,
         routes::cache_clear,
         layers::upload,
         layers::list,

@@ -4,7 +4,6 @@
 //! (bounded; a full lane refuses new jobs). Finished images are encoded on tokio's blocking
 //! pool so that encoding overlaps the next render.
 
-use super::data::LayerCache;
 use super::metrics::{KindLabels, Metrics};
 use super::view::ViewRequest;
 use crate::render::FrameRequest;
@@ -13,6 +12,7 @@ use crate::render::renderer::ViewState;
 use crate::render::{Gpu, RenderError, RenderOptions, Renderer};
 use crate::scene::Scene;
 use crate::store::Store;
+use crate::store::request::LayerCache;
 use axum::body::Bytes;
 use std::collections::{HashMap, VecDeque};
 use std::panic::AssertUnwindSafe;

@@ -5,10 +5,11 @@ use super::auth::Admin;
 use super::cache::CachedImage;
 use super::error::{ApiError, ErrorBody};
 use super::pool::PoolError;
-use super::view::{ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, style_json};
+use super::view::{ImageFormat, RenderQuery, Source, ViewParams, ViewRequest};
 use super::{AppState, Ready};
 use crate::render::presets::PRESETS;
-use crate::render::style::FieldSchema;
+use crate::render::style::{FieldSchema, PartialStyle};
+use crate::render::view_style::{ResolvedStyles, ViewStyle};
 use crate::render::{RenderError, Style};
 use crate::scene::camera::Camera;
 use axum::Json;
@@ -18,6 +19,7 @@ use axum::extract::{RawQuery, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
+use serde::de::DeserializeOwned;
 use utoipa::ToSchema;
 
 /// `GET /api/health`.
@@ -106,7 +108,7 @@ pub struct SceneInfo {
     pub sun: SunInfo,
     /// Every style field with its default value.
     #[schema(value_type = Object)]
-    pub default_style: serde_json::Map<String, serde_json::Value>,
+    pub default_style: Style,
     /// Style presets: name, one-line description and the style fields each sets.
     pub presets: Vec<PresetInfo>,
     /// Every style field: name, kind (`number`, `integer`, `boolean`, `string`, `color`),
@@ -130,7 +132,7 @@ pub struct PresetInfo {
     pub description: &'static str,
     /// The style fields it sets over the defaults.
     #[schema(value_type = Object)]
-    pub style: serde_json::Map<String, serde_json::Value>,
+    pub style: PartialStyle,
 }
 
 /// `POST /api/cache/clear`.
@@ -180,7 +182,7 @@ pub async fn scene(State(state): State<AppState>) -> Result<Json<SceneInfo>, Api
         species: scene.species.iter().map(|s| s.name.clone()).collect(),
         default_camera: CameraInfo::from(&scene.default_camera),
         sun: SunInfo { azimuth: scene.sun.azimuth, elevation: scene.sun.elevation },
-        default_style: style_json(&Style::default()),
+        default_style: Style::default(),
         presets: PRESETS
             .iter()
             .map(|p| PresetInfo { name: p.name, description: p.description, style: p.overrides() })
@@ -230,22 +232,43 @@ pub async fn render_post(
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
     let ready = state.ready().ok_or(ApiError::NotReady)?;
+    let params: ViewParams = parse_body(body)?;
+    let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Body)?;
+    render_view(ready, view, &headers).await
+}
+
+/// Resolves the styles of a view as a render does (the defaults, the preset, the fields; each
+/// layer's fields over its own preset or the view's style) and answers every style of the
+/// view: the view's and each layer's of the scene, with what its own fields merge over. The
+/// browser's style panel shows these.
+#[utoipa::path(post, path = "/api/styles/resolve", tag = "render", request_body = ViewStyle,
+    responses(
+        (status = 200, description = "The resolved styles", body = ResolvedStyles),
+        (status = 400, description = "Malformed JSON", body = ErrorBody),
+        (status = 404, description = "Unknown preset", body = ErrorBody),
+        (status = 413, description = "Body larger than the server allows", body = ErrorBody),
+        (status = 422, description = "Unknown layer, value out of range, wrong type or unknown field", body = ErrorBody),
+        (status = 503, description = "The scene is still loading", body = ErrorBody)))]
+pub async fn resolve_styles(
+    State(state): State<AppState>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Json<ResolvedStyles>, ApiError> {
+    let ready = state.ready().ok_or(ApiError::NotReady)?;
+    let styles: ViewStyle = parse_body(body)?;
+    Ok(Json(styles.resolve_all(&ready.scene.layer_names())?))
+}
+
+/// Parses a JSON body: too large a body is a 413, malformed JSON a 400, wrong types or unknown
+/// fields a 422 naming the field.
+fn parse_body<T: DeserializeOwned>(body: Result<Bytes, BytesRejection>) -> Result<T, ApiError> {
     let body = body.map_err(|e| match e.status() {
         StatusCode::PAYLOAD_TOO_LARGE => {
             ApiError::too_large("body", "the request body is larger than this server allows")
         }
         _ => ApiError::bad("body", e.body_text()),
     })?;
-    let params = parse_body(&body)?;
-    let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Body)?;
-    render_view(ready, view, &headers).await
-}
-
-/// Parses a JSON body: malformed JSON is a 400, wrong types or unknown fields a 422 naming
-/// the field.
-fn parse_body(body: &[u8]) -> Result<ViewParams, ApiError> {
-    let mut deserializer = serde_json::Deserializer::from_slice(body);
-    let params: ViewParams = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
+    let mut deserializer = serde_json::Deserializer::from_slice(&body);
+    let params: T = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
         let path = e.path().to_string();
         let parameter = (path != ".").then_some(path);
         let inner = e.into_inner();

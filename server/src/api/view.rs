@@ -4,308 +4,28 @@
 //! link round-trips: [`ViewParams::to_query`] and [`ViewParams::from_query`] convert between
 //! the two encodings.
 
-use super::data::DataRequest;
 use super::error::ApiError;
 use crate::fields::Mapping;
-use crate::render::style::{FrameStyle, TERRAIN_LAYER};
-use crate::render::{RenderError, Style};
+use crate::render::Style;
+use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
+use crate::render::view_style::ViewStyle;
 use crate::scene::Scene;
 use crate::scene::camera::{Camera, Projection};
 use crate::store::Store;
+use crate::store::request::DataRequest;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use utoipa::{IntoParams, ToSchema};
+
+pub use crate::render::image_format::{DEFAULT_JPEG_QUALITY, ImageFormat};
+pub use crate::scene::camera_params::{CameraMode, CameraParams, Source};
 
 /// Image width when a request gives none.
 pub const DEFAULT_WIDTH: u32 = 1024;
 /// Image height when a request gives none.
 pub const DEFAULT_HEIGHT: u32 = 768;
-/// JPEG quality when a request gives none.
-pub const DEFAULT_JPEG_QUALITY: u8 = 90;
-/// Eye height above the terrain when a position has no z.
-pub const DEFAULT_EYE_HEIGHT: f32 = 1.7;
-/// Largest absolute camera coordinate in scene metres.
-const MAX_COORDINATE: f32 = 1.0e7;
-/// Height of a plan view's eye above the highest terrain point, in metres (above every plant).
-pub const PLAN_EYE_CLEARANCE: f32 = 200.0;
-
-/// How a camera projects: `perspective` (default) or `plan` (orthographic, top-down).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum CameraMode {
-    /// A perspective view from the eye position.
-    Perspective,
-    /// A map-like plan view: `center` and `width` in scene metres, `yaw` up in the image.
-    Plan,
-}
-
-/// Encoded image formats.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum ImageFormat {
-    /// Lossless PNG (RGBA, 8 bit).
-    Png,
-    /// JPEG with a quality of 1–100.
-    Jpeg,
-}
-
-impl ImageFormat {
-    /// Parses a format name (`png`, `jpeg` or `jpg`); anything else is a 422 naming `parameter`
-    /// and the supported formats.
-    pub fn parse(name: &str, parameter: &str) -> Result<ImageFormat, ApiError> {
-        match name.to_ascii_lowercase().as_str() {
-            "png" => Ok(ImageFormat::Png),
-            "jpeg" | "jpg" => Ok(ImageFormat::Jpeg),
-            _ => {
-                Err(ApiError::invalid(parameter, format!("unsupported format {name:?}; supported formats: png, jpeg")))
-            }
-        }
-    }
-
-    /// The canonical name (`png`, `jpeg`).
-    pub fn name(self) -> &'static str {
-        match self {
-            ImageFormat::Png => "png",
-            ImageFormat::Jpeg => "jpeg",
-        }
-    }
-
-    /// The MIME type.
-    pub fn mime(self) -> &'static str {
-        match self {
-            ImageFormat::Png => "image/png",
-            ImageFormat::Jpeg => "image/jpeg",
-        }
-    }
-
-    /// Encodes `image`; `quality` (1–100) applies to JPEG. Deterministic: the same image gives
-    /// the same bytes.
-    pub fn encode(self, image: &image::RgbaImage, quality: Option<u8>) -> Result<Vec<u8>, image::ImageError> {
-        let mut out = std::io::Cursor::new(Vec::new());
-        match self {
-            ImageFormat::Png => image.write_to(&mut out, image::ImageFormat::Png)?,
-            ImageFormat::Jpeg => {
-                // `jpeg-encoder` (AVX2 where the CPU has it) takes RGBA as it is, ignoring alpha:
-                // about 3× faster than `image`'s encoder on a 1024 × 768 frame.
-                let quality = quality.unwrap_or(DEFAULT_JPEG_QUALITY);
-                let jpeg_error = |e: jpeg_encoder::EncodingError| {
-                    image::ImageError::Encoding(image::error::EncodingError::new(
-                        image::error::ImageFormatHint::Exact(image::ImageFormat::Jpeg),
-                        e,
-                    ))
-                };
-                let (width, height) = image.dimensions();
-                let side = |v: u32| {
-                    u16::try_from(v).map_err(|_| {
-                        image::ImageError::Limits(image::error::LimitError::from_kind(
-                            image::error::LimitErrorKind::DimensionError,
-                        ))
-                    })
-                };
-                jpeg_encoder::Encoder::new(out.get_mut(), quality)
-                    .encode(image.as_raw(), side(width)?, side(height)?, jpeg_encoder::ColorType::Rgba)
-                    .map_err(jpeg_error)?;
-            }
-        }
-        Ok(out.into_inner())
-    }
-}
-
-/// Where parameters came from, so that errors name them as the client wrote them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Source {
-    /// Query parameters of `GET /api/render` (`x`, `yaw`, …).
-    Query,
-    /// The JSON body of `POST /api/render` (`camera.position`, `camera.yaw`, …).
-    Body,
-    /// A WebSocket control message (`position`, `yaw`, …).
-    Message,
-}
-
-impl Source {
-    fn camera_field(self, field: &str) -> String {
-        match (self, field) {
-            (Source::Body, _) => format!("camera.{field}"),
-            (Source::Query, "position") => "x".into(),
-            _ => field.into(),
-        }
-    }
-}
-
-/// Camera parameters of a request; each one left out keeps the scene's default camera (or,
-/// on the WebSocket, the session's current camera).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(default, deny_unknown_fields)]
-pub struct CameraParams {
-    /// `perspective` (default) or `plan`: an orthographic top-down view of `width` metres
-    /// centred on `center`, heading `yaw` up (0: north up).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub mode: Option<CameraMode>,
-    /// Plan view: `[x, y]` of the image centre in scene metres (default: the current camera's
-    /// x and y).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<f32>>, min_items = 2, max_items = 2)]
-    pub center: Option<Vec<f32>>,
-    /// Plan view: scene metres across the image (default: the current plan width, else the
-    /// terrain's larger side).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub width: Option<f32>,
-    /// `[x, y]` (the eye `eye_height` above the terrain) or `[x, y, z]`, scene metres.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Vec<f32>>, min_items = 2, max_items = 3)]
-    pub position: Option<Vec<f32>>,
-    /// Eye height above the terrain in metres when the position has no z (default 1.7).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub eye_height: Option<f32>,
-    /// Compass heading in degrees: 0 north, 90 east.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub yaw: Option<f32>,
-    /// Degrees above (+) or below (−) the horizon, −90…90.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub pitch: Option<f32>,
-    /// Vertical field of view in degrees, 1…170.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub fov: Option<f32>,
-    /// Rotation about the view direction in degrees, −180…180; positive turns the picture
-    /// counter-clockwise.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub roll: Option<f32>,
-}
-
-/// A camera resolved against the terrain.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ResolvedCamera {
-    /// The camera with an absolute eye position.
-    pub camera: Camera,
-    /// The eye height above the terrain when the position was given without z.
-    pub eye_height: Option<f32>,
-}
-
-impl CameraParams {
-    /// Applies these parameters to `base`; a position without z (or an `eye_height` alone)
-    /// puts the eye above the terrain. Out-of-range values are 422s naming the parameter.
-    pub fn resolve(&self, base: &Camera, scene: &Scene, source: Source) -> Result<ResolvedCamera, ApiError> {
-        let name = |field: &str| source.camera_field(field);
-        let plan = match self.mode {
-            Some(mode) => mode == CameraMode::Plan,
-            None => !base.projection.is_perspective(),
-        };
-        if plan {
-            return self.resolve_plan(base, scene, source);
-        }
-        if let Some(field) = [("center", self.center.is_some()), ("width", self.width.is_some())]
-            .into_iter()
-            .find_map(|(field, given)| given.then_some(field))
-        {
-            return Err(ApiError::invalid(name(field), format!("{field} applies to plan views only (mode plan)")));
-        }
-        let base = &Camera { projection: Projection::Perspective, ..*base };
-        if let Some(eye) = self.eye_height
-            && !(0.0..=10_000.0).contains(&eye)
-        {
-            return Err(ApiError::invalid(name("eye_height"), format!("eye_height {eye} is outside 0..=10000 metres")));
-        }
-        let ground_eye = |x: f32, y: f32| -> Result<ResolvedCamera, ApiError> {
-            let eye = self.eye_height.unwrap_or(DEFAULT_EYE_HEIGHT);
-            let ground = scene.terrain.height_at(f64::from(x), f64::from(y)).ok_or_else(|| {
-                let ([x0, y0], [x1, y1]) = scene.terrain.bounds();
-                ApiError::invalid(
-                    name("position"),
-                    format!(
-                        "position {x},{y} is outside the terrain (x {x0:.0}..{x1:.0}, y {y0:.0}..{y1:.0} m); give z to place the eye freely"
-                    ),
-                )
-            })?;
-            Ok(ResolvedCamera {
-                camera: Camera { position: [x, y, ground as f32 + eye], ..*base },
-                eye_height: Some(eye),
-            })
-        };
-        let mut resolved = match self.position.as_deref() {
-            None if self.eye_height.is_some() => ground_eye(base.position[0], base.position[1])?,
-            None => ResolvedCamera { camera: *base, eye_height: None },
-            Some(position) => {
-                if let Some(bad) = position.iter().find(|v| !(v.is_finite() && v.abs() <= MAX_COORDINATE)) {
-                    return Err(ApiError::invalid(
-                        name("position"),
-                        format!("coordinate {bad} is not a number within ±{MAX_COORDINATE} metres"),
-                    ));
-                }
-                match *position {
-                    [x, y] => ground_eye(x, y)?,
-                    [x, y, z] if self.eye_height.is_none() => {
-                        ResolvedCamera { camera: Camera { position: [x, y, z], ..*base }, eye_height: None }
-                    }
-                    [_, _, _] => {
-                        return Err(ApiError::invalid(name("eye_height"), "give either z or eye_height, not both"));
-                    }
-                    _ => {
-                        return Err(ApiError::invalid(
-                            name("position"),
-                            format!("expected [x, y] or [x, y, z], got {} values", position.len()),
-                        ));
-                    }
-                }
-            }
-        };
-        let camera = &mut resolved.camera;
-        camera.yaw = checked(self.yaw, camera.yaw, &name("yaw"), -3600.0, 3600.0)?;
-        camera.pitch = checked(self.pitch, camera.pitch, &name("pitch"), -90.0, 90.0)?;
-        camera.fov = checked(self.fov, camera.fov, &name("fov"), 1.0, 170.0)?;
-        camera.roll = checked(self.roll, camera.roll, &name("roll"), -180.0, 180.0)?;
-        Ok(resolved)
-    }
-
-    /// A plan view: centre and width from these parameters or `base`, the eye
-    /// [`PLAN_EYE_CLEARANCE`] above the highest terrain, looking straight down.
-    fn resolve_plan(&self, base: &Camera, scene: &Scene, source: Source) -> Result<ResolvedCamera, ApiError> {
-        let name = |field: &str| source.camera_field(field);
-        let perspective_only = [
-            ("position", self.position.is_some()),
-            ("eye_height", self.eye_height.is_some()),
-            ("pitch", self.pitch.is_some()),
-            ("fov", self.fov.is_some()),
-        ];
-        if let Some((field, _)) = perspective_only.into_iter().find(|(_, given)| *given) {
-            return Err(ApiError::invalid(
-                name(field),
-                format!("{field} does not apply to a plan view; give center and width"),
-            ));
-        }
-        let ([x0, y0], [x1, y1]) = scene.terrain.bounds();
-        let [cx, cy] = match self.center.as_deref() {
-            None => [base.position[0], base.position[1]],
-            Some(&[x, y]) if [x, y].iter().all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE) => [x, y],
-            Some(other) => {
-                return Err(ApiError::invalid(
-                    name("center"),
-                    format!("expected [x, y] within ±{MAX_COORDINATE} metres, got {other:?}"),
-                ));
-            }
-        };
-        let default_width = match base.projection {
-            Projection::Plan { width } => width,
-            Projection::Perspective => (x1 - x0).max(y1 - y0) as f32,
-        };
-        let width = checked(self.width, default_width, &name("width"), 0.01, 1.0e6)?;
-        let top = scene.terrain.dem.data.iter().copied().filter(|h| h.is_finite()).fold(f64::MIN, f64::max);
-        let z = if top == f64::MIN { 0.0 } else { top as f32 } + PLAN_EYE_CLEARANCE;
-        let mut camera = Camera { roll: base.roll, yaw: base.yaw, ..Camera::plan(cx, cy, z, width) };
-        camera.yaw = checked(self.yaw, camera.yaw, &name("yaw"), -3600.0, 3600.0)?;
-        camera.roll = checked(self.roll, camera.roll, &name("roll"), -180.0, 180.0)?;
-        Ok(ResolvedCamera { camera, eye_height: None })
-    }
-}
-
-fn checked(value: Option<f32>, default: f32, parameter: &str, lo: f32, hi: f32) -> Result<f32, ApiError> {
-    match value {
-        None => Ok(default),
-        Some(v) if (lo..=hi).contains(&v) => Ok(v),
-        Some(v) => Err(ApiError::invalid(parameter, format!("{parameter} {v} is outside {lo}..={hi}"))),
-    }
-}
 
 /// A view as a client asks for it, in the JSON body of `POST /api/render`; `GET /api/render`
 /// takes the same as flat query parameters (see [`RenderQuery`]).
@@ -333,13 +53,13 @@ pub struct ViewParams {
     /// Style overrides: a JSON object with any subset of the style fields (README, "Style").
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
-    pub style: Option<Value>,
+    pub style: Option<PartialStyle>,
     /// Styles of single layers (thesis 8.2.8): layer name (`terrain` or a vegetation layer)
     /// → a partial style merged over the view's style, or over `"preset"` when it names one,
     /// e.g. `{"existing": {"preset": "photorealism"}}`.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Object>)]
-    pub layer_styles: Option<Map<String, Value>>,
+    pub layer_styles: Option<BTreeMap<String, LayerStyle>>,
     /// Data layers shown in the view (D3/D4): up to 3 `{"layer": id, "target": "color" |
     /// "hatch_tone" | "hatch_color" | "hatch_pattern" | "silhouette_style" |
     /// "silhouette_density", "range": [lo, hi], "colormap": name, "opacity": 0..1, "reverse":
@@ -445,20 +165,12 @@ impl ViewParams {
             (None, _, _) => return Err(ApiError::invalid("x", "x is missing: give x and y together (z optionally)")),
             (_, None, _) => return Err(ApiError::invalid("y", "y is missing: give x and y together (z optionally)")),
         };
-        let style = match &q.style {
-            Some(text) => Some(
-                serde_json::from_str(text)
-                    .map_err(|e| ApiError::bad("style", format!("style is not valid JSON: {e}")))?,
-            ),
-            None => None,
-        };
-        let layer_styles =
-            match &q.layer_styles {
-                Some(text) => Some(serde_json::from_str(text).map_err(|e| {
-                    ApiError::bad("layer_styles", format!("layer_styles is not a valid JSON object: {e}"))
-                })?),
-                None => None,
-            };
+        let style = q.style.as_deref().map(|text| query_json("style", text, "valid JSON")).transpose()?;
+        let layer_styles = q
+            .layer_styles
+            .as_deref()
+            .map(|text| query_json("layer_styles", text, "a valid JSON object"))
+            .transpose()?;
         let mappings = match &q.mappings {
             Some(text) => Some(serde_json::from_str(text).map_err(|e| {
                 ApiError::bad("mappings", format!("mappings is not a valid JSON array of mappings: {e}"))
@@ -520,8 +232,8 @@ impl ViewParams {
             format: self.format.clone(),
             quality: self.quality,
             preset: self.preset.clone(),
-            style: self.style.as_ref().map(Value::to_string),
-            layer_styles: self.layer_styles.as_ref().map(|m| Value::Object(m.clone()).to_string()),
+            style: self.style.as_ref().and_then(|s| serde_json::to_string(s).ok()),
+            layer_styles: self.layer_styles.as_ref().and_then(|m| serde_json::to_string(m).ok()),
             mappings: self.mappings.as_ref().and_then(|m| serde_json::to_string(m).ok()),
             time: self.time.clone(),
         };
@@ -543,16 +255,57 @@ impl ViewParams {
         let width = image_side("width", self.width.unwrap_or(DEFAULT_WIDTH), limits.max_width)?;
         let height = image_side("height", self.height.unwrap_or(DEFAULT_HEIGHT), limits.max_height)?;
         let format = match &self.format {
-            Some(name) => ImageFormat::parse(name, "format")?,
+            Some(name) => image_format(name, "format")?,
             None => ImageFormat::Png,
         };
         let quality = jpeg_quality(self.quality, "quality")?;
         let quality = (format == ImageFormat::Jpeg).then_some(quality);
-        let style = parse_style(self.preset.as_deref(), self.style.as_ref(), "style")?;
-        let layer_styles = parse_layer_styles(&style, self.layer_styles.as_ref(), scene)?;
+        let styles = self.view_style().resolve(&scene.layer_names())?;
         let data = DataRequest::resolve(self.mappings.as_deref().unwrap_or_default(), self.time.as_deref(), store)?;
-        Ok(ViewRequest { camera, width, height, format, quality, style, layer_styles, data })
+        Ok(ViewRequest {
+            camera,
+            width,
+            height,
+            format,
+            quality,
+            style: styles.base,
+            layer_styles: styles.layers,
+            data,
+        })
     }
+
+    /// The style part of these parameters: preset, fields and layer styles.
+    pub fn view_style(&self) -> ViewStyle {
+        ViewStyle {
+            preset: self.preset.clone(),
+            style: self.style.clone().unwrap_or_default(),
+            layer_styles: self.layer_styles.clone().unwrap_or_default(),
+        }
+    }
+}
+
+/// Parses the JSON text of the query parameter `parameter`: malformed JSON is a 400 saying
+/// it is not `what`; a value of the wrong shape a 422 naming the field (`style.ambient`).
+fn query_json<T: DeserializeOwned>(parameter: &str, text: &str, what: &str) -> Result<T, ApiError> {
+    let mut deserializer = serde_json::Deserializer::from_str(text);
+    let value = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner();
+        if inner.is_data() {
+            let field = if path == "." { parameter.to_owned() } else { format!("{parameter}.{path}") };
+            ApiError::invalid(field, format!("{parameter}: {inner}"))
+        } else {
+            ApiError::bad(parameter, format!("{parameter} is not {what}: {inner}"))
+        }
+    })?;
+    deserializer.end().map_err(|e| ApiError::bad(parameter, format!("{parameter} is not {what}: {e}")))?;
+    Ok(value)
+}
+
+/// Parses an image format name; an unknown one is a 422 naming `parameter` and the supported
+/// formats.
+pub fn image_format(name: &str, parameter: &str) -> Result<ImageFormat, ApiError> {
+    name.parse::<ImageFormat>().map_err(|e| ApiError::invalid(parameter, e.to_string()))
 }
 
 /// Checks a JPEG quality (1–100; default 90).
@@ -575,77 +328,6 @@ pub fn image_side(parameter: &str, value: u32, max: u32) -> Result<u32, ApiError
     } else {
         Ok(value)
     }
-}
-
-/// A style error as an API error: an unknown preset is a 404 naming it and the known ones;
-/// bad fields are 422s naming the field as `<parameter>.<field>`.
-fn style_error(error: RenderError, parameter: &str) -> ApiError {
-    let message = format!("{parameter}: {error}");
-    match &error {
-        RenderError::UnknownPreset { .. } => ApiError::NotFound(message),
-        RenderError::Style { field, .. } => ApiError::invalid(format!("{parameter}.{field}"), message),
-        RenderError::StyleField { field: Some(field), .. } => {
-            ApiError::invalid(format!("{parameter}.{field}"), message)
-        }
-        _ => ApiError::invalid(parameter, message),
-    }
-}
-
-/// Builds a [`Style`] from an optional preset (404 when unknown) and a JSON object of overrides
-/// merged over it (or over the defaults); errors are 422s naming the field as
-/// `<parameter>.<field>`.
-pub fn parse_style(preset: Option<&str>, overrides: Option<&Value>, parameter: &str) -> Result<Style, ApiError> {
-    let overrides = match overrides {
-        None => &Map::new(),
-        Some(Value::Object(map)) => map,
-        Some(_) => {
-            return Err(ApiError::invalid(parameter, format!("{parameter} must be a JSON object of style fields")));
-        }
-    };
-    Style::from_preset(preset, overrides).map_err(|e| style_error(e, parameter))
-}
-
-/// The per-layer styles of a view: each partial style merged over `base` (or over the preset
-/// it names). A name that is neither `terrain` nor a layer of `scene` is a 422 naming the
-/// known ones.
-pub fn parse_layer_styles(
-    base: &Style,
-    layers: Option<&Map<String, Value>>,
-    scene: &Scene,
-) -> Result<BTreeMap<String, Style>, ApiError> {
-    let mut styles = BTreeMap::new();
-    for (name, partial) in layers.into_iter().flatten() {
-        let parameter = format!("layer_styles.{name}");
-        if name != TERRAIN_LAYER && !scene.layers.iter().any(|l| &l.name == name) {
-            let known: Vec<&str> =
-                std::iter::once(TERRAIN_LAYER).chain(scene.layers.iter().map(|l| l.name.as_str())).collect();
-            let message = format!("{name:?} is not a layer of this scene; layers: {}", known.join(", "));
-            return Err(ApiError::invalid(parameter, message));
-        }
-        let Value::Object(partial) = partial else {
-            return Err(ApiError::invalid(parameter, "a layer style must be a JSON object of style fields"));
-        };
-        styles.insert(name.clone(), base.layer(partial).map_err(|e| style_error(e, &parameter))?);
-    }
-    Ok(styles)
-}
-
-/// `style` as a JSON object. Goes through JSON text so that `f32` fields keep their short
-/// decimal form (0.98, not 0.9800000190734863).
-pub fn style_json(style: &Style) -> Map<String, Value> {
-    style.to_json()
-}
-
-/// The fields of `style` that differ from `base`.
-fn style_diff(style: &Style, base: &Style) -> Map<String, Value> {
-    let base = base.to_json();
-    style.to_json().into_iter().filter(|(k, v)| base.get(k) != Some(v)).collect()
-}
-
-/// The fields of `style` that differ from the default style: the short form of a style in
-/// links.
-pub fn style_overrides(style: &Style) -> Map<String, Value> {
-    style_diff(style, &Style::default())
 }
 
 /// A validated, normalized view: what is rendered, hashed for the ETag and cached. Equal
@@ -683,6 +365,7 @@ impl ViewRequest {
     /// or with [`ViewParams::to_query`] a `GET /api/render` link.
     pub fn to_params(&self) -> ViewParams {
         let c = &self.camera;
+        let styles = ViewStyle::of_frame(&self.frame_style());
         let camera = match c.projection {
             Projection::Perspective => CameraParams {
                 position: Some(c.position.to_vec()),
@@ -708,14 +391,8 @@ impl ViewRequest {
             format: Some(self.format.name().into()),
             quality: self.quality.map(u32::from),
             preset: None,
-            style: Some(style_overrides(&self.style)).filter(|m| !m.is_empty()).map(Value::Object),
-            layer_styles: Some(
-                self.layer_styles
-                    .iter()
-                    .map(|(name, style)| (name.clone(), Value::Object(style_diff(style, &self.style))))
-                    .collect(),
-            )
-            .filter(|m: &Map<String, Value>| !m.is_empty()),
+            style: Some(styles.style).filter(|s| !s.is_empty()),
+            layer_styles: Some(styles.layer_styles).filter(|m| !m.is_empty()),
             mappings: Some(self.data.mappings.clone()).filter(|m| !m.is_empty()),
             time: self.data.time.clone(),
         }

@@ -7,25 +7,27 @@
 //! (`--interactive-scale`, `--interactive-quality`, at most `--max-fps`); after
 //! `--still-delay-ms` of rest the session gets a full-size still in its own format.
 
-use super::data::DataRequest;
 use super::error::{ApiError, ErrorDetail};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
 use super::routes::{CameraInfo, pool_error};
 use super::view::{
-    CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_side,
-    jpeg_quality, parse_layer_styles, parse_style, style_overrides,
+    CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_format,
+    image_side, jpeg_quality,
 };
 use super::{AppState, Ready};
 use crate::fields::Mapping;
 use crate::render::Style;
+use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
+use crate::render::view_style::ViewStyle;
 use crate::scene::camera::Camera;
+use crate::store::request::DataRequest;
 use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade, close_code};
 use axum::extract::{RawQuery, State};
 use axum::response::Response;
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value};
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::time::Instant;
@@ -68,18 +70,19 @@ pub enum ClientMessage {
     /// Changes the style: `style` fields are merged into the session's overrides, a `preset`
     /// becomes the base they merge over, and `layer_styles` fields are merged into each named
     /// layer's overrides (or all of them replace the session's with `replace: true`).
+    /// Answered by a `style` message with the styles the session renders now.
     Style {
         /// Style fields (README, "Style").
         #[serde(default)]
         #[schema(value_type = Object)]
-        style: Map<String, Value>,
+        style: Box<PartialStyle>,
         /// Style preset the overrides merge over.
         #[serde(default)]
         preset: Option<String>,
         /// Per-layer partial styles: layer name → style fields (or `"preset"`).
         #[serde(default)]
         #[schema(value_type = Object)]
-        layer_styles: Map<String, Value>,
+        layer_styles: BTreeMap<String, LayerStyle>,
         /// Replace all overrides instead of merging.
         #[serde(default)]
         replace: bool,
@@ -161,6 +164,16 @@ pub enum ServerMessage {
         render_ms: f32,
         /// The camera of the frame.
         camera: CameraInfo,
+    },
+    /// Answer to a `style` control: the complete styles the session renders from now on, as
+    /// the server resolved them (presets, overrides and layer styles merged).
+    Style {
+        /// The view's style.
+        #[schema(value_type = Object)]
+        style: Style,
+        /// The styles of the layers that have their own, by layer name.
+        #[schema(value_type = Object)]
+        layer_styles: BTreeMap<String, Style>,
     },
     /// Answer to a `data` control: the normalized time and the warnings.
     Data {
@@ -319,13 +332,9 @@ struct View {
     camera: Camera,
     /// Eye height above the terrain while walking; `None` while flying.
     eye_height: Option<f32>,
-    style_overrides: Map<String, Value>,
-    /// The preset the style overrides merge over.
-    preset: Option<String>,
-    style: Style,
-    /// Per-layer partial styles (layer name → fields over `style`) and the complete styles.
-    layer_overrides: Map<String, Value>,
-    layer_styles: BTreeMap<String, Style>,
+    /// The styles as the control messages gave them (merged) and as resolved.
+    requested: ViewStyle,
+    styles: FrameStyle,
     width: u32,
     height: u32,
     format: ImageFormat,
@@ -382,11 +391,8 @@ impl<'a> Session<'a> {
             view: View {
                 camera,
                 eye_height,
-                style_overrides: style_overrides(&initial.style),
-                preset: None,
-                layer_overrides: initial.to_params().layer_styles.unwrap_or_default(),
-                layer_styles: initial.layer_styles,
-                style: initial.style,
+                requested: ViewStyle::of_frame(&initial.frame_style()),
+                styles: initial.frame_style(),
                 width: initial.width,
                 height: initial.height,
                 format: initial.format,
@@ -502,15 +508,20 @@ impl<'a> Session<'a> {
         let applied = match message {
             ClientMessage::Ping { id } => return Some(ServerMessage::Pong { id }),
             ClientMessage::Data { mappings, time } => {
-                DataRequest::resolve(&mappings, time.as_deref(), self.state.store()).map(|data| {
-                    answer = Some(ServerMessage::Data { time: data.time.clone(), warnings: data.warnings.clone() });
-                    self.view.data = data;
-                })
+                DataRequest::resolve(&mappings, time.as_deref(), self.state.store()).map_err(ApiError::from).map(
+                    |data| {
+                        answer = Some(ServerMessage::Data { time: data.time.clone(), warnings: data.warnings.clone() });
+                        self.view.data = data;
+                    },
+                )
             }
             ClientMessage::Camera(params) => self.set_camera(&params),
             ClientMessage::Move(m) => self.move_camera(&m),
             ClientMessage::Style { style, preset, layer_styles, replace } => {
-                self.set_style(style, preset, layer_styles, replace)
+                self.set_style(&ViewStyle { preset, style: *style, layer_styles }, replace).map(|styles| {
+                    answer =
+                        Some(ServerMessage::Style { style: styles.base.clone(), layer_styles: styles.layers.clone() });
+                })
             }
             ClientMessage::Size { width, height } => self.set_size(width, height),
             ClientMessage::Quality { format, quality } => self.set_quality(format.as_deref(), quality),
@@ -575,32 +586,14 @@ impl<'a> Session<'a> {
         Ok(())
     }
 
-    fn set_style(
-        &mut self,
-        style: Map<String, Value>,
-        preset: Option<String>,
-        layer_styles: Map<String, Value>,
-        replace: bool,
-    ) -> Result<(), ApiError> {
-        let v = &self.view;
-        let (mut overrides, mut layers) =
-            if replace { (Map::new(), Map::new()) } else { (v.style_overrides.clone(), v.layer_overrides.clone()) };
-        let preset = if replace { preset } else { preset.or_else(|| v.preset.clone()) };
-        overrides.extend(style);
-        for (name, fields) in layer_styles {
-            match (layers.get_mut(&name), fields) {
-                (Some(Value::Object(old)), Value::Object(new)) => old.extend(new),
-                (_, fields) => {
-                    layers.insert(name, fields);
-                }
-            }
-        }
-        let base = parse_style(preset.as_deref(), Some(&Value::Object(overrides.clone())), "style")?;
-        let layer_styles = parse_layer_styles(&base, Some(&layers), &self.ready.scene)?;
-        self.view.style_overrides = overrides;
-        (self.view.preset, self.view.style, self.view.layer_overrides) = (preset, base, layers);
-        self.view.layer_styles = layer_styles;
-        Ok(())
+    /// Merges a `style` control into the session's styles (or replaces them) and resolves
+    /// them; returns what the session renders now.
+    fn set_style(&mut self, change: &ViewStyle, replace: bool) -> Result<&FrameStyle, ApiError> {
+        let mut requested = if replace { ViewStyle::default() } else { self.view.requested.clone() };
+        requested.merge(change);
+        self.view.styles = requested.resolve(&self.ready.scene.layer_names())?;
+        self.view.requested = requested;
+        Ok(&self.view.styles)
     }
 
     fn set_size(&mut self, width: u32, height: u32) -> Result<(), ApiError> {
@@ -612,7 +605,7 @@ impl<'a> Session<'a> {
     }
 
     fn set_quality(&mut self, format: Option<&str>, quality: Option<u32>) -> Result<(), ApiError> {
-        let format = format.map(|f| ImageFormat::parse(f, "format")).transpose()?.unwrap_or(self.view.format);
+        let format = format.map(|f| image_format(f, "format")).transpose()?.unwrap_or(self.view.format);
         let quality = match quality {
             Some(q) => jpeg_quality(Some(q), "quality")?,
             None => self.view.quality,
@@ -640,8 +633,8 @@ impl<'a> Session<'a> {
                 height,
                 format,
                 quality,
-                style: v.style.clone(),
-                layer_styles: v.layer_styles.clone(),
+                style: v.styles.base.clone(),
+                layer_styles: v.styles.layers.clone(),
                 data: v.data.clone(),
             },
             kind,

@@ -10,6 +10,7 @@ pub mod coherence;
 pub mod device;
 pub mod gbuffer;
 pub mod layer_code;
+pub mod image_format;
 pub mod parametrization;
 pub mod passes;
 pub mod presets;
@@ -20,6 +21,7 @@ pub mod renderer;
 pub mod scene_gpu;
 pub mod style;
 pub mod uniforms;
+pub mod view_style;
 
 pub use device::Gpu;
 pub use renderer::{Frame, FrameRequest, Readback, RenderOptions, Renderer};

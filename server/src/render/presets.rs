@@ -1,9 +1,9 @@
 //! Named style presets (SPEC R10, NPAR paper Fig. 3): documented partial styles over the
 //! defaults that anyone can start from and modify — a request's own style fields merge over
-//! the preset ([`super::Style::from_preset`]).
+//! the preset ([`super::view_style::ViewStyle::resolve`]).
 
+use super::style::PartialStyle;
 use super::{RenderError, Style};
-use serde_json::{Map, Value};
 
 /// A named style preset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -18,14 +18,14 @@ pub struct Preset {
 
 impl Preset {
     /// The fields this preset sets.
-    pub fn overrides(&self) -> Map<String, Value> {
+    pub fn overrides(&self) -> PartialStyle {
         // The texts are constants checked by the unit tests below.
         serde_json::from_str(self.overrides).unwrap_or_default()
     }
 
     /// The complete style: the defaults with this preset's fields.
     pub fn style(&self) -> Result<Style, RenderError> {
-        Style::default().merged(&self.overrides())
+        Style::default().with(&self.overrides())
     }
 }
 
@@ -107,12 +107,13 @@ pub fn preset(name: &str) -> Result<Style, RenderError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::view_style::ViewStyle;
 
     #[test]
     fn every_preset_parses_validates_and_differs() {
         let mut styles: Vec<Style> = Vec::new();
         for p in PRESETS {
-            let overrides: Map<String, Value> = serde_json::from_str(p.overrides).expect(p.name);
+            let overrides: PartialStyle = serde_json::from_str(p.overrides).expect(p.name);
             assert!(!overrides.is_empty(), "{}", p.name);
             let style = p.style().unwrap_or_else(|e| panic!("{}: {e}", p.name));
             assert!(styles.iter().all(|s| *s != style), "{} repeats another preset", p.name);
@@ -127,9 +128,10 @@ mod tests {
         assert!(err.contains("winter") && err.contains("photorealism") && err.contains("childrens_book"), "{err}");
         let photo = preset("photorealism").unwrap();
         assert_eq!((photo.photorealism, photo.ambient), (1.0, 0.35));
-        let overrides: Map<String, Value> = serde_json::from_str(r#"{"ambient": 0.6}"#).unwrap();
-        let merged = Style::from_preset(Some("photorealism"), &overrides).unwrap();
+        let style: PartialStyle = serde_json::from_str(r#"{"ambient": 0.6}"#).unwrap();
+        let view = ViewStyle { preset: Some("photorealism".into()), style, ..ViewStyle::default() };
+        let merged = view.resolve(&[]).unwrap().base;
         assert_eq!((merged.photorealism, merged.ambient), (1.0, 0.6));
-        assert_eq!(Style::from_preset(None, &Map::new()).unwrap(), Style::default());
+        assert_eq!(ViewStyle::default().resolve(&[]).unwrap().base, Style::default());
     }
 }

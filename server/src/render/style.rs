@@ -1,14 +1,19 @@
 //! The style parameters of a rendering: one struct, serialisable, with defaults, ranges and a
-//! schema generated from the same field list; the photorealism axis (thesis 8.2.7); per-layer
-//! styles of one frame (thesis 8.2.8); and the uniform blocks the passes read.
+//! schema generated from the same field list, together with its partial form
+//! ([`PartialStyle`]: any subset of the fields, as requests, presets and layers give them);
+//! the photorealism axis (thesis 8.2.7); per-layer styles of one frame (thesis 8.2.8); and the
+//! uniform blocks the passes read.
 //!
 //! The field-by-field reference is in the README ("Style"); [`Style::schema`] gives the same
 //! as data (name, kind, default, range, description) for the CLI and the API.
 
 use super::RenderError;
+use super::layer_code::LayerCode;
+use serde::de::{self, Deserializer, MapAccess, Visitor};
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value};
+use serde_json::Value;
 use std::collections::BTreeMap;
+use std::fmt;
 
 /// How hatch texture coordinates are computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -46,18 +51,30 @@ impl LeafMode {
     }
 }
 
-/// A type a style field can have: its kind in the schema and the numbers its range applies to.
+/// A type a style field can have: its kind in the schema, the numbers its range applies to
+/// and its value in the schema.
 trait FieldValue {
     /// `number`, `integer`, `boolean`, `string` or `color` (three numbers).
     const KIND: &'static str;
     /// The numbers checked against the field's range (every component of a colour).
     fn numbers(&self) -> Vec<f32>;
+    /// The value as JSON.
+    fn to_json(&self) -> Value;
+}
+
+/// `value` as a JSON number in its short decimal form (0.2, not the 0.20000000298023224 that
+/// widening the `f32` to `f64` gives), as JSON text writes it.
+fn short_number(value: f32) -> Value {
+    value.to_string().parse::<f64>().ok().and_then(serde_json::Number::from_f64).map_or(Value::Null, Value::Number)
 }
 
 impl FieldValue for f32 {
     const KIND: &'static str = "number";
     fn numbers(&self) -> Vec<f32> {
         vec![*self]
+    }
+    fn to_json(&self) -> Value {
+        short_number(*self)
     }
 }
 
@@ -66,12 +83,18 @@ impl FieldValue for u32 {
     fn numbers(&self) -> Vec<f32> {
         vec![*self as f32]
     }
+    fn to_json(&self) -> Value {
+        Value::from(*self)
+    }
 }
 
 impl FieldValue for usize {
     const KIND: &'static str = "integer";
     fn numbers(&self) -> Vec<f32> {
         vec![*self as f32]
+    }
+    fn to_json(&self) -> Value {
+        Value::from(*self)
     }
 }
 
@@ -80,12 +103,18 @@ impl FieldValue for bool {
     fn numbers(&self) -> Vec<f32> {
         Vec::new()
     }
+    fn to_json(&self) -> Value {
+        Value::Bool(*self)
+    }
 }
 
 impl FieldValue for HatchSpace {
     const KIND: &'static str = "string";
     fn numbers(&self) -> Vec<f32> {
         Vec::new()
+    }
+    fn to_json(&self) -> Value {
+        serde_json::to_value(self).unwrap_or(Value::Null)
     }
 }
 
@@ -94,12 +123,18 @@ impl FieldValue for LeafMode {
     fn numbers(&self) -> Vec<f32> {
         Vec::new()
     }
+    fn to_json(&self) -> Value {
+        serde_json::to_value(self).unwrap_or(Value::Null)
+    }
 }
 
 impl FieldValue for [f32; 3] {
     const KIND: &'static str = "color";
     fn numbers(&self) -> Vec<f32> {
         self.to_vec()
+    }
+    fn to_json(&self) -> Value {
+        Value::Array(self.iter().map(|c| short_number(*c)).collect())
     }
 }
 
@@ -124,19 +159,14 @@ pub struct FieldSchema {
     pub doc: String,
 }
 
-/// `value` as JSON through its text form, so `f32` values keep their short decimal form
-/// (0.2, not 0.20000000298023224).
-fn json_value<T: Serialize>(value: &T) -> Value {
-    serde_json::to_string(value).and_then(|text| serde_json::from_str(&text)).unwrap_or(Value::Null)
-}
-
 /// Joins the lines of a doc comment into one paragraph.
 fn paragraph(doc: &str) -> String {
     doc.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
-/// Defines [`Style`], its `Default`, its range validation and its schema from one field list:
-/// `/// doc` `name: type = default, lo..=hi;` (the range is optional).
+/// Defines [`Style`], its `Default`, its range validation and its schema, and [`PartialStyle`]
+/// with its merge rules, from one field list: `/// doc` `name: type = default, lo..=hi;` (the
+/// range is optional).
 macro_rules! style_fields {
     ($($(#[doc = $doc:literal])+ $name:ident : $ty:ty = $default:expr $(, $lo:literal ..= $hi:literal)?;)+) => {
         /// Style parameters, from pen-and-ink sketch to photorealism. Every field has a default,
@@ -177,14 +207,149 @@ macro_rules! style_fields {
                 vec![$(FieldSchema {
                     name: stringify!($name),
                     kind: <$ty as FieldValue>::KIND,
-                    default: json_value(&defaults.$name),
+                    default: defaults.$name.to_json(),
                     min: None $(.or(Some($lo as f32)))?,
                     max: None $(.or(Some($hi as f32)))?,
                     doc: paragraph(concat!($($doc, " "),+)),
                 },)+]
             }
+
+            /// Replaces the fields `partial` sets (without validating: see [`Style::with`]).
+            pub fn apply(&mut self, partial: &PartialStyle) {
+                $(if let Some(value) = &partial.$name {
+                    self.$name = value.clone();
+                })+
+            }
+        }
+
+        /// Any subset of the [`Style`] fields (`None`: not set): the overrides of a request,
+        /// a preset's fields, a layer's own fields. As JSON an object of style fields; unknown
+        /// fields and values of the wrong type are errors naming the field (ranges are checked
+        /// on the complete style, [`Style::with`]).
+        #[derive(Debug, Clone, Default, PartialEq, Serialize)]
+        pub struct PartialStyle {
+            $($(#[doc = $doc])+ #[serde(skip_serializing_if = "Option::is_none")] pub $name: Option<$ty>,)+
+        }
+
+        impl PartialStyle {
+            /// The field names, in declaration order.
+            pub const FIELDS: &'static [&'static str] = &[$(stringify!($name)),+];
+
+            /// Sets the fields `later` sets: later wins.
+            pub fn merge(&mut self, later: &PartialStyle) {
+                $(if let Some(value) = &later.$name {
+                    self.$name = Some(value.clone());
+                })+
+            }
+
+            /// The fields of `style` that differ from `base`: `base` with them applied is
+            /// `style`.
+            pub fn diff(style: &Style, base: &Style) -> PartialStyle {
+                PartialStyle { $($name: (style.$name != base.$name).then(|| style.$name.clone()),)+ }
+            }
+
+            /// Whether no field is set.
+            pub fn is_empty(&self) -> bool {
+                true $(&& self.$name.is_none())+
+            }
+
+            /// Reads the value of the field `key` from `map` (a field given twice keeps the
+            /// later value, as in a JSON object); `false` (nothing read) when no field has this
+            /// name. A value of the wrong type is an error naming the field.
+            fn read_field<'de, A: MapAccess<'de>>(&mut self, key: &str, map: &mut A) -> Result<bool, A::Error> {
+                match key {
+                    $(stringify!($name) => self.$name = Some(map.next_value().map_err(|e| field_error(key, e))?),)+
+                    _ => return Ok(false),
+                }
+                Ok(true)
+            }
         }
     };
+}
+
+/// The deserialization error of a style field: [`RenderError::StyleField`] naming it.
+fn field_error<E: de::Error>(field: &str, message: impl fmt::Display) -> E {
+    E::custom(RenderError::StyleField { field: Some(field.to_owned()), message: message.to_string() })
+}
+
+/// The deserialization error of a key that is no style field: [`RenderError::StyleField`]
+/// listing the fields (and `extra`, the other keys the object takes).
+fn unknown_field<E: de::Error>(key: &str, extra: &[&str]) -> E {
+    let fields: Vec<String> = extra.iter().chain(PartialStyle::FIELDS).map(|f| format!("`{f}`")).collect();
+    let message = format!("unknown field `{key}`, expected one of {}", fields.join(", "));
+    E::custom(RenderError::StyleField { field: None, message })
+}
+
+impl<'de> Deserialize<'de> for PartialStyle {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<PartialStyle, D::Error> {
+        /// Reads a JSON object of style fields.
+        struct Fields;
+        impl<'de> Visitor<'de> for Fields {
+            type Value = PartialStyle;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a JSON object of style fields")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<PartialStyle, A::Error> {
+                let mut partial = PartialStyle::default();
+                while let Some(key) = map.next_key::<String>()? {
+                    if !partial.read_field(&key, &mut map)? {
+                        return Err(unknown_field(&key, &[]));
+                    }
+                }
+                Ok(partial)
+            }
+        }
+        deserializer.deserialize_map(Fields)
+    }
+}
+
+/// A layer's own style (thesis 8.2.8): its fields over the view's style, or over a preset it
+/// names. As JSON an object of style fields with an optional `"preset"`, e.g.
+/// `{"preset": "photorealism", "ambient": 0.2}`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct LayerStyle {
+    /// The preset the fields merge over instead of the view's style.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preset: Option<String>,
+    /// The layer's own fields.
+    #[serde(flatten)]
+    pub fields: PartialStyle,
+}
+
+impl<'de> Deserialize<'de> for LayerStyle {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<LayerStyle, D::Error> {
+        /// Reads a JSON object of style fields and `preset`.
+        struct Fields;
+        impl<'de> Visitor<'de> for Fields {
+            type Value = LayerStyle;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a layer style: a JSON object of style fields and an optional \"preset\"")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<LayerStyle, A::Error> {
+                let mut layer = LayerStyle::default();
+                while let Some(key) = map.next_key::<String>()? {
+                    if key == "preset" {
+                        let name = map.next_value::<String>().map_err(|e| field_error(&key, e))?;
+                        layer.preset = Some(name);
+                    } else if !layer.fields.read_field(&key, &mut map)? {
+                        return Err(unknown_field(&key, &["preset"]));
+                    }
+                }
+                Ok(layer)
+            }
+        }
+        deserializer.deserialize_map(Fields)
+    }
+}
+
+impl LayerStyle {
+    /// Sets what `later` sets: its preset, if it names one, and its fields (later wins).
+    pub fn merge(&mut self, later: &LayerStyle) {
+        if later.preset.is_some() {
+            self.preset.clone_from(&later.preset);
+        }
+        self.fields.merge(&later.fields);
+    }
 }
 
 style_fields! {
@@ -346,53 +511,13 @@ impl Style {
         }
     }
 
-    /// This style as a JSON object (through JSON text, so numbers keep their short form).
-    pub fn to_json(&self) -> Map<String, Value> {
-        match json_value(self) {
-            Value::Object(map) => map,
-            _ => Map::new(),
-        }
-    }
-
-    /// `self` with the fields of `overrides` (a partial style) replaced, then validated.
-    /// Wrong types and unknown fields are [`RenderError::StyleField`] naming the field;
-    /// out-of-range values [`RenderError::Style`].
-    pub fn merged(&self, overrides: &Map<String, Value>) -> Result<Style, RenderError> {
-        let mut map = self.to_json();
-        map.extend(overrides.iter().map(|(k, v)| (k.clone(), v.clone())));
-        let style: Style = serde_path_to_error::deserialize(Value::Object(map)).map_err(|e| {
-            let path = e.path().to_string();
-            RenderError::StyleField { field: (path != ".").then_some(path), message: e.inner().to_string() }
-        })?;
+    /// This style with the fields of `partial` replaced, validated: out-of-range values are
+    /// [`RenderError::Style`] naming the field and its range.
+    pub fn with(&self, partial: &PartialStyle) -> Result<Style, RenderError> {
+        let mut style = self.clone();
+        style.apply(partial);
         style.validate()?;
         Ok(style)
-    }
-
-    /// A style from an optional preset (see [`super::presets`]) with `overrides` merged over
-    /// it; without a preset the overrides apply to the defaults.
-    pub fn from_preset(preset: Option<&str>, overrides: &Map<String, Value>) -> Result<Style, RenderError> {
-        let base = match preset {
-            Some(name) => super::presets::preset(name)?,
-            None => Style::default(),
-        };
-        base.merged(overrides)
-    }
-
-    /// The style of one layer from its partial style: the fields merged over the frame's style
-    /// `self`, or over a preset when the partial style names one (`{"preset": "photorealism"}`).
-    pub fn layer(&self, partial: &Map<String, Value>) -> Result<Style, RenderError> {
-        match partial.get("preset") {
-            None => self.merged(partial),
-            Some(Value::String(name)) => {
-                let mut fields = partial.clone();
-                fields.remove("preset");
-                Style::from_preset(Some(name), &fields)
-            }
-            Some(other) => Err(RenderError::StyleField {
-                field: Some("preset".into()),
-                message: format!("expected a preset name, got {other}"),
-            }),
-        }
     }
 }
 
@@ -448,19 +573,9 @@ impl FrameStyle {
     /// layer names. A layer name the scene does not have, or a layer beyond the slots, is an
     /// error.
     pub fn slots(&self, vegetation_layers: &[String]) -> Result<Vec<Style>, RenderError> {
-        use super::layer_code::LayerCode;
         let mut slots = vec![self.base.resolved(); STYLE_SLOTS];
         for (name, style) in &self.layers {
-            let code = if name == TERRAIN_LAYER {
-                LayerCode::TERRAIN
-            } else {
-                let index = vegetation_layers.iter().position(|l| l == name).ok_or_else(|| {
-                    let known: Vec<&str> =
-                        std::iter::once(TERRAIN_LAYER).chain(vegetation_layers.iter().map(String::as_str)).collect();
-                    RenderError::UnknownLayer { name: name.clone(), known: known.join(", ") }
-                })?;
-                LayerCode::vegetation(index)
-            };
+            let code = layer_code(name, vegetation_layers)?;
             let Some(slot) = code.own_slot() else {
                 return Err(RenderError::LayerSlots { name: name.clone(), max: LayerCode::VEGETATION_SLOTS });
             };
@@ -468,6 +583,21 @@ impl FrameStyle {
         }
         Ok(slots)
     }
+}
+
+/// The layer code of the layer `name` (`terrain` or one of `vegetation_layers`, the scene's
+/// vegetation layer names), which may be beyond the slots; another name is an error naming the
+/// scene's layers.
+pub fn layer_code(name: &str, vegetation_layers: &[String]) -> Result<LayerCode, RenderError> {
+    if name == TERRAIN_LAYER {
+        return Ok(LayerCode::TERRAIN);
+    }
+    let index = vegetation_layers.iter().position(|l| l == name).ok_or_else(|| {
+        let known: Vec<&str> =
+            std::iter::once(TERRAIN_LAYER).chain(vegetation_layers.iter().map(String::as_str)).collect();
+        RenderError::UnknownLayer { name: name.to_owned(), known: known.join(", ") }
+    })?;
+    Ok(LayerCode::vegetation(index))
 }
 
 /// Groups the slots by silhouette art map: the distinct `silhouette_map`s in slot order, and
@@ -525,7 +655,9 @@ mod tests {
     #[test]
     fn schema_lists_every_field_with_its_default_and_range() {
         let schema = Style::schema();
-        let json = Style::default().to_json();
+        // Through JSON text, where `f32` numbers have their short form as in the schema.
+        let text = serde_json::to_string(&Style::default()).unwrap();
+        let json: serde_json::Map<String, Value> = serde_json::from_str(&text).unwrap();
         assert_eq!(schema.len(), json.len());
         for field in &schema {
             assert_eq!(json[field.name], field.default, "{}", field.name);
@@ -597,14 +729,13 @@ mod tests {
     #[test]
     fn partial_styles_merge_and_name_the_bad_field() {
         let base = Style { color: 0.7, ..Style::default() };
-        let overrides: Map<String, Value> = serde_json::from_str(r#"{"hatch_map": 2, "ink": [0, 0, 0.5]}"#).unwrap();
-        let merged = base.merged(&overrides).unwrap();
+        let overrides: PartialStyle = serde_json::from_str(r#"{"hatch_map": 2, "ink": [0, 0, 0.5]}"#).unwrap();
+        let merged = base.with(&overrides).unwrap();
         assert_eq!((merged.color, merged.hatch_map, merged.ink), (0.7, 2, [0.0, 0.0, 0.5]));
-        let bad: Map<String, Value> = serde_json::from_str(r#"{"ambient": "dark"}"#).unwrap();
-        let err = base.merged(&bad).unwrap_err();
-        assert!(matches!(&err, RenderError::StyleField { field: Some(f), .. } if f == "ambient"), "{err}");
-        let range: Map<String, Value> = serde_json::from_str(r#"{"color": 3}"#).unwrap();
-        assert!(matches!(base.merged(&range), Err(RenderError::Style { field: "color", .. })));
+        let err = serde_json::from_str::<PartialStyle>(r#"{"ambient": "dark"}"#).unwrap_err().to_string();
+        assert!(err.starts_with("invalid style parameter `ambient`: invalid type: string"), "{err}");
+        let range: PartialStyle = serde_json::from_str(r#"{"color": 3}"#).unwrap();
+        assert!(matches!(base.with(&range), Err(RenderError::Style { field: "color", .. })));
     }
 
     #[test]
@@ -624,14 +755,13 @@ mod tests {
         assert_eq!(&slot_groups[..4], &[0, 1, 0, 0]);
         // A layer's partial style merges over the frame's style, or over a preset it names.
         let base = Style { color: 0.4, ..Style::default() };
-        let partial: Map<String, Value> = serde_json::from_str(r#"{"hatch_map": 2}"#).unwrap();
-        assert_eq!(base.layer(&partial).unwrap(), Style { hatch_map: 2, ..base.clone() });
-        let partial: Map<String, Value> =
-            serde_json::from_str(r#"{"preset": "minimalistic", "ambient": 0.2}"#).unwrap();
-        let layer = base.layer(&partial).unwrap();
+        let partial: LayerStyle = serde_json::from_str(r#"{"hatch_map": 2}"#).unwrap();
+        assert_eq!(partial.resolve(&base).unwrap().style, Style { hatch_map: 2, ..base.clone() });
+        let partial: LayerStyle = serde_json::from_str(r#"{"preset": "minimalistic", "ambient": 0.2}"#).unwrap();
+        let layer = partial.resolve(&base).unwrap().style;
         assert_eq!((layer.color, layer.hatch_strength, layer.ambient), (0.0, 0.0, 0.2));
-        let partial: Map<String, Value> = serde_json::from_str(r#"{"preset": 3}"#).unwrap();
-        assert!(base.layer(&partial).unwrap_err().to_string().contains("preset"));
+        let err = serde_json::from_str::<LayerStyle>(r#"{"preset": 3}"#).unwrap_err();
+        assert!(err.to_string().contains("preset"));
         frame.layers.insert("meadow".into(), Style::default());
         let err = frame.slots(&layers).unwrap_err().to_string();
         assert!(err.contains("meadow") && err.contains("terrain, existing, planned"), "{err}");

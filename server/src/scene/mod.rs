@@ -1,6 +1,7 @@
 //! The landscape scene: terrain mesh, plant models, vegetation placement and the scene file.
 
 pub mod camera;
+pub mod camera_params;
 pub mod config;
 pub mod gltf_loader;
 pub mod mesh;
@@ -188,6 +189,11 @@ impl Scene {
     /// Number of plants over all layers.
     pub fn plant_count(&self) -> usize {
         self.layers.iter().map(|l| l.plants.len()).sum()
+    }
+
+    /// The names of the vegetation layers, in order (the names per-layer styles use).
+    pub fn layer_names(&self) -> Vec<String> {
+        self.layers.iter().map(|l| l.name.clone()).collect()
     }
 }
 

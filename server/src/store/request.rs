@@ -2,14 +2,28 @@
 //! the layer store and Table 9.1 ([`DataRequest::resolve`]), and their fields loaded for the
 //! renderer on the render thread ([`LayerCache`]).
 
-use super::error::ApiError;
+use super::{LayerMeta, Store};
 use crate::fields::{Clamp, FieldError, Mapping, TimeSample, format_time, parse_time, validate_mappings};
 use crate::render::RenderError;
 use crate::render::projection::{DataLayer, DataMapping, DataView};
-use crate::store::{LayerMeta, Store};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::sync::Arc;
+
+/// Mappings and a time that a view cannot show.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// A mapping names a layer the store does not have.
+    #[error("unknown layer {0:?}")]
+    UnknownLayer(String),
+    /// The mappings are unusable: too many, a feature used twice, a bad range, opacity or
+    /// hatch colour, a target the layer's kind cannot show.
+    #[error("{0}")]
+    Mappings(FieldError),
+    /// The time is no ISO 8601 time.
+    #[error("{0}")]
+    Time(FieldError),
+}
 
 /// The version of a stored layer a view shows: a re-uploaded or extended layer is another
 /// version (another ETag, other GPU textures).
@@ -58,20 +72,18 @@ impl DataRequest {
         self.mappings.is_empty() && self.time.is_none()
     }
 
-    /// Checks `mappings` and `time` against `store`: unknown layers are 404s, too many
-    /// mappings, a feature other than colour and hatch colour used twice, bad
-    /// ranges, opacities or hatch colours and bad times 422s; Table 9.1 and clamped times become
-    /// warnings.
-    pub fn resolve(mappings: &[Mapping], time: Option<&str>, store: &Store) -> Result<DataRequest, ApiError> {
+    /// Checks `mappings` and `time` against `store`: unknown layers, too many mappings, a
+    /// feature other than colour and hatch colour used twice, bad ranges, opacities or hatch
+    /// colours and bad times are errors; Table 9.1 and clamped times become warnings.
+    pub fn resolve(mappings: &[Mapping], time: Option<&str>, store: &Store) -> Result<DataRequest, DataError> {
         let metas = mappings
             .iter()
-            .map(|m| store.get(&m.layer).map_err(|_| ApiError::NotFound(format!("unknown layer {:?}", m.layer))))
+            .map(|m| store.get(&m.layer).map_err(|_| DataError::UnknownLayer(m.layer.clone())))
             .collect::<Result<Vec<_>, _>>()?;
         let find = |id: &str| metas.iter().find(|m| m.id == id).map(|m| (m.kind, m.classes.len()));
-        let invalid = |e: FieldError| ApiError::invalid("mappings", e.to_string());
         let mut warnings: Vec<String> =
-            validate_mappings(mappings, find).map_err(invalid)?.into_iter().map(|w| w.message).collect();
-        let time = time.map(parse_time).transpose().map_err(|e| ApiError::invalid("time", e.to_string()))?;
+            validate_mappings(mappings, find).map_err(DataError::Mappings)?.into_iter().map(|w| w.message).collect();
+        let time = time.map(parse_time).transpose().map_err(DataError::Time)?;
         if let Some(t) = time {
             for meta in &metas {
                 let times = meta.times().into_iter().filter_map(|s| parse_time(s).ok()).collect::<Vec<_>>();
