@@ -109,7 +109,7 @@ fn every_leaf_mode_matches_its_reference() {
     assert_matches_reference(&sheet, Path::new("tests/reference/leaf_modes.png"), 0.03);
     // At this size a particle mode draws a quarter of the 1200 leaves, a quad each.
     let triangles = |leaf_mode| {
-        renderer.draw_stats(&FrameRequest::new(&camera, &sketch(leaf_mode), WIDTH, HEIGHT)).expect("stats").triangles
+        renderer.draw_stats(&FrameRequest::new(&camera, sketch(leaf_mode), WIDTH, HEIGHT)).expect("stats").triangles
     };
     assert_eq!(triangles(LeafMode::Original) - triangles(LeafMode::Elliptical), 2 * (1200 - 300));
     for (i, image) in images.iter().enumerate().skip(2) {
@@ -234,7 +234,7 @@ fn a_far_plant_draws_fewer_larger_particles() {
     assert_eq!(leaves, 1200);
     let (near, far) = (camera_at(10.0), camera_at(60.0));
     let stats = |camera: &Camera, leaf_mode| {
-        renderer.draw_stats(&FrameRequest::new(camera, &mode(leaf_mode), 400, 480)).expect("stats")
+        renderer.draw_stats(&FrameRequest::new(camera, mode(leaf_mode), 400, 480)).expect("stats")
     };
     // As modelled, every card at every distance: the source geometry.
     let original = stats(&near, LeafMode::Original).triangles;

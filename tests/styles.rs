@@ -48,8 +48,14 @@ fn with_ink(styles: &FrameStyle, ink: [f32; 3]) -> FrameStyle {
 /// of every pixel. The output is mix(base, ink, coverage), so the difference of the two
 /// renders divided by the difference of the inks is the coverage.
 fn render_with_coverage(renderer: &Renderer, camera: &Camera, styles: &FrameStyle) -> (image::RgbaImage, Vec<f32>) {
-    let black = renderer.render(FrameRequest::new(camera, with_ink(styles, [0.0; 3]), SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
-    let white = renderer.render(FrameRequest::new(camera, with_ink(styles, [1.0; 3]), SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let black = renderer
+        .render(FrameRequest::new(camera, with_ink(styles, [0.0; 3]), SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
+    let white = renderer
+        .render(FrameRequest::new(camera, with_ink(styles, [1.0; 3]), SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     let coverage = black
         .pixels()
         .zip(white.pixels())
@@ -169,14 +175,20 @@ fn photoreal_pixels_are_albedo_times_lambert_and_ambient() {
     // Colour over the sketch: saturation 0 greys it, Gooch turns it cool or warm, the toon ramp
     // quantizes the light (0.65 with 3 bands → the middle band, 0.5).
     let sketch = Style { color: 1.0, hatch_strength: 0.0, contour_strength: 0.0, ambient: 0.3, ..Style::default() };
-    let grey = renderer.render(FrameRequest::new(&camera, &Style { color_saturation: 0.0, ..sketch.clone() }, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let grey = renderer
+        .render(FrameRequest::new(&camera, &Style { color_saturation: 0.0, ..sketch.clone() }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     assert!(chroma(grey.get_pixel(SIZE.0 / 2, SIZE.1 - 10)) < 0.01);
     let toon = Style { toon: 1.0, toon_levels: 3, ..sketch.clone() };
     let image = renderer.render(FrameRequest::new(&camera, &toon, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     let ground = image.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
     let expected = encode_srgb(0.5 * 0.5) * 255.0;
     assert!((f32::from(ground[0]) - expected).abs() <= 2.0, "toon {ground:?} vs {expected}");
-    let gooch = renderer.render(FrameRequest::new(&camera, &Style { gooch: 1.0, ..sketch }, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let gooch = renderer
+        .render(FrameRequest::new(&camera, &Style { gooch: 1.0, ..sketch }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     let g = gooch.get_pixel(SIZE.0 / 2, SIZE.1 - 10);
     // k = (1 + N·L)/2 = 0.75: 0.25·(0.2·k_d + (0, 0, 0.4)) + 0.75·(0.6·k_d + (0.4, 0.4, 0)).
     let expected_blue = encode_srgb(0.25 * (0.2 * 0.3 + 0.4) + 0.75 * (0.6 * 0.3)) * 255.0;
@@ -190,11 +202,17 @@ fn hlp_abstraction_pulls_leaves_onto_their_spheres() {
     let camera = Camera { position: [0.0, -16.0, 105.5], pitch: 8.0, fov: 50.0, ..scene.default_camera };
     let plain = Style { hatch_strength: 0.0, silhouette_strength: 0.0, ..Style::default() };
     let original = renderer.render(FrameRequest::new(&camera, &plain, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
-    let abstract_ = renderer.render(FrameRequest::new(&camera, &Style { hlp_abstraction: 1.0, ..plain.clone() }, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let abstract_ = renderer
+        .render(FrameRequest::new(&camera, &Style { hlp_abstraction: 1.0, ..plain.clone() }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     assert_matches_reference(&abstract_, &reference("hlp_abstraction"), 0.02);
     // Eq. 4.8 is a blend: half-way differs from the original less than the full projection,
     // and the trunk (no HLP) does not move.
-    let half = renderer.render(FrameRequest::new(&camera, &Style { hlp_abstraction: 0.5, ..plain }, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let half = renderer
+        .render(FrameRequest::new(&camera, &Style { hlp_abstraction: 0.5, ..plain }, SIZE.0, SIZE.1))
+        .map(|f| f.image)
+        .unwrap();
     let (to_half, to_full) = (difference(&half, &original), difference(&abstract_, &original));
     assert!(0.0 < to_half && to_half < to_full, "{to_half} vs {to_full}");
     let trunk =
@@ -213,9 +231,13 @@ fn layers_have_styles_of_their_own_in_one_frame() {
     let image = renderer.render(FrameRequest::new(&camera, &mixed, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     assert_matches_reference(&image, &reference("mixed_existing_planned"), 0.02);
 
-    let ids = renderer.render(FrameRequest::new(&camera, Style::default(), SIZE.0, SIZE.1).read(Readback::IDS)).map(|f| f.ids.unwrap_or_default()).unwrap();
+    let ids = renderer
+        .render(FrameRequest::new(&camera, Style::default(), SIZE.0, SIZE.1).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
     let (_, coverage) = render_with_coverage(renderer, &camera, &mixed);
-    let photo = renderer.render(FrameRequest::new(&camera, preset("photorealism"), SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
+    let photo =
+        renderer.render(FrameRequest::new(&camera, preset("photorealism"), SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     let sketch = renderer.render(FrameRequest::new(&camera, &base, SIZE.0, SIZE.1)).map(|f| f.image).unwrap();
     let layer_pixels = |code: u32| ids.iter().enumerate().filter(move |(_, id)| *id >> 24 == code).map(|(i, _)| i);
     // `existing` (layer code 2) is photorealistic: no ink, and the pixels of the photorealistic
@@ -264,7 +286,11 @@ fn bad_presets_and_values_are_errors_naming_them() {
     assert!(err.contains("photorealism") && err.contains("0..=1"), "{err}");
     let (scene, renderer) = sample();
     let bad = Style { color_saturation: 3.0, ..Style::default() };
-    let err = renderer.render(FrameRequest::new(&scene.default_camera, &bad, 32, 32)).map(|f| f.image).unwrap_err().to_string();
+    let err = renderer
+        .render(FrameRequest::new(&scene.default_camera, &bad, 32, 32))
+        .map(|f| f.image)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("color_saturation") && err.contains("0..=2"), "{err}");
 }
 
@@ -279,8 +305,14 @@ fn a_hidden_layer_draws_no_plants() {
     };
     let bare = Renderer::new(gpu(), &trees_on_a_plain(&[])).unwrap();
     let without_plants = bare.render(FrameRequest::new(&camera, Style::default(), 160, 120)).map(|f| f.image).unwrap();
-    assert_eq!(renderer.render(FrameRequest::new(&camera, &hidden, 160, 120)).map(|f| f.image).unwrap(), without_plants);
-    assert_ne!(renderer.render(FrameRequest::new(&camera, Style::default(), 160, 120)).map(|f| f.image).unwrap(), without_plants);
+    assert_eq!(
+        renderer.render(FrameRequest::new(&camera, &hidden, 160, 120)).map(|f| f.image).unwrap(),
+        without_plants
+    );
+    assert_ne!(
+        renderer.render(FrameRequest::new(&camera, Style::default(), 160, 120)).map(|f| f.image).unwrap(),
+        without_plants
+    );
 }
 
 /// Frames whose slots all share one style are drawn with post-pass pipelines specialised for
@@ -297,7 +329,12 @@ fn specialised_pipelines_draw_what_the_general_ones_draw() {
         let terrain = Style { sky_zenith: [1.0, 0.0, 0.0], sky_horizon: [0.0, 1.0, 0.0], ..base.clone() };
         let general = FrameStyle { base: base.clone(), layers: [(TERRAIN_LAYER.to_owned(), terrain)].into() };
         let specialised = renderer.render(FrameRequest::new(&camera, &base, 160, 120)).map(|f| f.image).unwrap();
-        assert_eq!(specialised, renderer.render(FrameRequest::new(&camera, &general, 160, 120)).map(|f| f.image).unwrap(), "{}", preset.name);
+        assert_eq!(
+            specialised,
+            renderer.render(FrameRequest::new(&camera, &general, 160, 120)).map(|f| f.image).unwrap(),
+            "{}",
+            preset.name
+        );
         assert!(fraction(&specialised, |l| l < 0.5) > 0.01, "{} draws ink", preset.name);
     }
 }

@@ -230,7 +230,7 @@ fn run_style(
         encode_jpeg(&image)?;
         passes.entry("encode".into()).or_default().push(started.elapsed().as_secs_f64() * 1e3);
     }
-    let stats = renderer.draw_stats(&FrameRequest::new(&cameras[cameras.len() / 2], &Style::default(), w, h))?;
+    let stats = renderer.draw_stats(&FrameRequest::new(&cameras[cameras.len() / 2], Style::default(), w, h))?;
     let frame_ms = Stat::of(&frames);
     Ok(StyleRun {
         style: name.to_owned(),
@@ -280,7 +280,7 @@ pub fn run(
         scenes.push(SceneRun {
             plants: scene.plant_count(),
             source_triangles: renderer
-                .draw_stats(&FrameRequest::new(&cameras[0], &Style::default(), options.width, options.height))?
+                .draw_stats(&FrameRequest::new(&cameras[0], Style::default(), options.width, options.height))?
                 .source_triangles,
             prep_ms,
             cache_hits: after.hits - before.hits,
