@@ -515,23 +515,19 @@ impl Renderer {
         let mut timer = recorder.submit();
         let image = readback::read_rgba8(&self.gpu, &targets.output, width, height)?;
         timer.mark("readback");
-        let texels = |texture: &wgpu::Texture| readback::read_texels(&self.gpu, texture, width, height, 8);
+        // The first 32-bit channel of every texel of a two-channel 32-bit target.
+        let first_channel = |texture: &wgpu::Texture| -> Result<Vec<[u8; 4]>, RenderError> {
+            let texels = readback::read_texels(&self.gpu, texture, width, height, 8)?;
+            Ok(texels.chunks_exact(8).map(|b| [b[0], b[1], b[2], b[3]]).collect())
+        };
         let depth = match request.read.depth {
             true => Some(
-                texels(&targets.gbuffer.linear_depth_texture)?
-                    .chunks_exact(8)
-                    .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
-                    .collect(),
+                first_channel(&targets.gbuffer.linear_depth_texture)?.into_iter().map(f32::from_ne_bytes).collect(),
             ),
             false => None,
         };
         let ids = match request.read.ids {
-            true => Some(
-                texels(&targets.gbuffer.id_texture)?
-                    .chunks_exact(8)
-                    .map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
-                    .collect(),
-            ),
+            true => Some(first_channel(&targets.gbuffer.id_texture)?.into_iter().map(u32::from_ne_bytes).collect()),
             false => None,
         };
         debug!(
