@@ -478,6 +478,23 @@ async fn cors_is_off_unless_origins_are_configured() {
         .expect("OPTIONS");
     assert!(preflight.status().is_success());
     assert_eq!(preflight.headers()["access-control-allow-origin"], origin);
+
+    // Browsers do not count `Authorization` under `Access-Control-Allow-Headers: *`: it and
+    // `Content-Type` must be named.
+    let preflight = client()
+        .request(reqwest::Method::OPTIONS, TestServer::guarded().url("/api/layers"))
+        .header("origin", origin)
+        .header("access-control-request-method", "POST")
+        .header("access-control-request-headers", "authorization, content-type")
+        .send()
+        .await
+        .expect("OPTIONS");
+    assert!(preflight.status().is_success());
+    let allowed = preflight.headers()["access-control-allow-headers"].to_str().expect("ASCII").to_ascii_lowercase();
+    let allowed: Vec<&str> = allowed.split(',').map(str::trim).collect();
+    for needed in ["authorization", "content-type"] {
+        assert!(allowed.contains(&needed), "{needed} missing from {allowed:?}");
+    }
 }
 
 #[tokio::test]
