@@ -295,6 +295,26 @@ async fn bad_uploads_get_errors_and_leave_the_store_unchanged() {
     assert_eq!(json_of(get(&server.url("/api/layers")).await).await, listed, "listing changed");
 }
 
+/// The 4096 × 4096 cell limit holds however an ESRI ASCII grid lays out its header: a
+/// byte-order mark before a key or kilobytes of blank lines between keys are read as the
+/// reader reads them, and the upload is refused with 413 before any value is decoded.
+#[tokio::test]
+async fn ascii_grids_over_the_cell_limit_are_refused_however_the_header_is_laid_out() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let before = tree(dir.path());
+    let tail = "xllcorner -105.3\nyllcorner 40.0\ncellsize 0.00001\n1 2 3\n";
+    for (what, grid) in [
+        ("byte-order mark", format!("ncols 4200\n\u{feff}nrows 4200\n{tail}")),
+        ("blank lines", format!("ncols 4472\n{}nrows 4472\n{tail}", "\n".repeat(4096))),
+    ] {
+        let response = upload(&server, "name=Big&kind=scalar&crs=scene&filename=big.asc", grid.into_bytes()).await;
+        let message = assert_error(response, 413, "too_large", None).await;
+        assert!(message.contains("big.asc") && message.contains("cells"), "{what}: {message}");
+    }
+    assert_eq!(tree(dir.path()), before, "nothing stored");
+}
+
 /// Text fields of an upload refuse control characters (422 naming the field), and error
 /// messages cut long client input short.
 #[tokio::test]
