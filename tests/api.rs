@@ -272,6 +272,31 @@ async fn bad_requests_get_json_errors_naming_the_parameter() {
     assert_error(get(&server.url("/api/ws")).await, 400, "bad_request", None).await;
 }
 
+/// Client input echoed in an error message is cut to a readable length: a 500 kB preset or
+/// layer name comes back as a few dozen characters and `…`.
+#[tokio::test]
+async fn error_messages_bound_the_client_input_they_echo() {
+    let server = TestServer::shared();
+    let url = server.url("/api/render");
+    let long = "p".repeat(500_000);
+    for (body, status, code) in [
+        (json!({ "preset": long }), 404, "not_found"),
+        (json!({ "layer_styles": { long.as_str(): { "ambient": 0.5 } } }), 422, "invalid_parameter"),
+        (json!({ "style": { long.as_str(): 1 } }), 422, "invalid_parameter"),
+    ] {
+        let body = assert_error(post(&url, body.to_string()).await, status, code, None).await;
+        let message = body["error"]["message"].as_str().expect("message");
+        assert!(
+            message.len() < 1000 && message.contains('…'),
+            "{} bytes: {}",
+            message.len(),
+            message.chars().take(200).collect::<String>()
+        );
+        let parameter = body["error"]["parameter"].as_str().unwrap_or_default();
+        assert!(parameter.len() < 200, "parameter of {} bytes", parameter.len());
+    }
+}
+
 #[tokio::test]
 async fn a_view_request_round_trips_through_query_parameters() {
     let (scene, _) = loaded();
@@ -478,6 +503,23 @@ async fn cors_is_off_unless_origins_are_configured() {
         .expect("OPTIONS");
     assert!(preflight.status().is_success());
     assert_eq!(preflight.headers()["access-control-allow-origin"], origin);
+
+    // Browsers do not count `Authorization` under `Access-Control-Allow-Headers: *`: it and
+    // `Content-Type` must be named.
+    let preflight = client()
+        .request(reqwest::Method::OPTIONS, TestServer::guarded().url("/api/layers"))
+        .header("origin", origin)
+        .header("access-control-request-method", "POST")
+        .header("access-control-request-headers", "authorization, content-type")
+        .send()
+        .await
+        .expect("OPTIONS");
+    assert!(preflight.status().is_success());
+    let allowed = preflight.headers()["access-control-allow-headers"].to_str().expect("ASCII").to_ascii_lowercase();
+    let allowed: Vec<&str> = allowed.split(',').map(str::trim).collect();
+    for needed in ["authorization", "content-type"] {
+        assert!(allowed.contains(&needed), "{needed} missing from {allowed:?}");
+    }
 }
 
 #[tokio::test]

@@ -295,6 +295,64 @@ async fn bad_uploads_get_errors_and_leave_the_store_unchanged() {
     assert_eq!(json_of(get(&server.url("/api/layers")).await).await, listed, "listing changed");
 }
 
+/// The 4096 × 4096 cell limit holds however an ESRI ASCII grid lays out its header: a
+/// byte-order mark before a key or kilobytes of blank lines between keys are read as the
+/// reader reads them, and the upload is refused with 413 before any value is decoded.
+#[tokio::test]
+async fn ascii_grids_over_the_cell_limit_are_refused_however_the_header_is_laid_out() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let before = tree(dir.path());
+    let tail = "xllcorner -105.3\nyllcorner 40.0\ncellsize 0.00001\n1 2 3\n";
+    for (what, grid) in [
+        ("byte-order mark", format!("ncols 4200\n\u{feff}nrows 4200\n{tail}")),
+        ("blank lines", format!("ncols 4472\n{}nrows 4472\n{tail}", "\n".repeat(4096))),
+    ] {
+        let response = upload(&server, "name=Big&kind=scalar&crs=scene&filename=big.asc", grid.into_bytes()).await;
+        let message = assert_error(response, 413, "too_large", None).await;
+        assert!(message.contains("big.asc") && message.contains("cells"), "{what}: {message}");
+    }
+    assert_eq!(tree(dir.path()), before, "nothing stored");
+}
+
+/// Text fields of an upload refuse control characters (422 naming the field), and error
+/// messages cut long client input short.
+#[tokio::test]
+async fn upload_text_fields_refuse_control_characters_and_errors_bound_echoes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let before = tree(dir.path());
+    for (query, parameter) in [
+        ("name=K&kind=scalar&units=deg%07C", "units"),
+        ("name=K&kind=scalar&units=%1B%5B31mred", "units"),
+        ("name=K%0AL&kind=scalar", "name"),
+        ("name=K&kind=scalar&filename=a%00.tif", "filename"),
+    ] {
+        let message =
+            assert_error(upload(&server, query, scene_tiff(0.0)).await, 422, "invalid_parameter", Some(parameter))
+                .await;
+        assert!(message.contains("control characters"), "{query}: {message}");
+    }
+    let long = "x".repeat(20_000);
+    for query in [
+        format!("name=K&kind=scalar&time={long}"),
+        format!("name=K&kind=scalar&crs={long}"),
+        format!("name=K&kind=label&classes={long}"),
+        format!("name=K&kind=scalar&filename={long}.asc"),
+        format!("name=K&kind=scalar&units={long}"),
+    ] {
+        let response = upload(&server, &query, scene_tiff(0.0)).await;
+        assert!(response.status().is_client_error(), "{}", response.status());
+        let body = json_of(response).await;
+        let message = body["error"]["message"].as_str().expect("message");
+        assert!(message.len() < 1000, "{} bytes: {}", message.len(), message.chars().take(200).collect::<String>());
+    }
+    let missing = get(&server.url(&format!("/api/layers/{}", "y".repeat(5000)))).await;
+    let message = assert_error(missing, 404, "not_found", None).await;
+    assert!(message.len() < 200 && message.contains('…'), "{message}");
+    assert_eq!(tree(dir.path()), before, "nothing stored");
+}
+
 #[tokio::test]
 async fn concurrent_uploads_all_land() {
     let dir = tempfile::tempdir().expect("temp dir");

@@ -11,6 +11,7 @@
 
 pub mod api;
 pub mod bench;
+pub mod echo;
 pub mod fields;
 pub mod gis;
 pub mod prep;

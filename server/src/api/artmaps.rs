@@ -275,14 +275,14 @@ fn decode(kind: ArtKind, bytes: &[u8], levels: usize, name: &str) -> Result<ArtM
 
 /// The kind and index of a path: `tam`/`sam` and `3` or `3.png`; anything else is a 404.
 fn parse_path(kind: &str, index: &str) -> Result<(ArtKind, usize), ApiError> {
-    let kind = ArtKind::from_name(kind)
-        .ok_or_else(|| ApiError::NotFound(format!("unknown art-map kind {kind:?}; kinds: tam, sam")))?;
+    let kind = ArtKind::from_name(kind).ok_or_else(|| {
+        ApiError::NotFound(format!("unknown art-map kind {:?}; kinds: tam, sam", crate::echo::echo(kind)))
+    })?;
     let number = index.strip_suffix(".png").unwrap_or(index);
-    let index = number
-        .parse::<usize>()
-        .ok()
-        .filter(|n| n.to_string() == number)
-        .ok_or_else(|| ApiError::NotFound(format!("{index:?} is no art-map index (0, 1, …)")))?;
+    let index =
+        number.parse::<usize>().ok().filter(|n| n.to_string() == number).ok_or_else(|| {
+            ApiError::NotFound(format!("{:?} is no art-map index (0, 1, …)", crate::echo::echo(index)))
+        })?;
     Ok((kind, index))
 }
 

@@ -6,15 +6,20 @@ use super::error::ApiError;
 use axum::extract::{ConnectInfo, FromRequestParts};
 use axum::http::header;
 use axum::http::request::Parts;
+use sha2::{Digest, Sha256};
 use std::net::SocketAddr;
 
 /// Extractor that admits a request to a write endpoint or rejects it with 401/403.
 #[derive(Debug, Clone, Copy)]
 pub struct Admin;
 
-/// Compares two byte strings in time independent of where they differ.
-fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+/// Compares a given token with the configured one in time independent of where they differ
+/// and of the tokens' lengths: both are hashed (SHA-256) and the digests are XOR-folded over
+/// all 32 bytes, with no early exit the optimiser could introduce.
+fn constant_time_eq(given: &[u8], token: &[u8]) -> bool {
+    let (a, b) = (Sha256::digest(given), Sha256::digest(token));
+    let diff = a.iter().zip(b.iter()).fold(0u8, |acc, (x, y)| std::hint::black_box(acc | (x ^ y)));
+    std::hint::black_box(diff) == 0
 }
 
 impl FromRequestParts<AppState> for Admin {
@@ -64,6 +69,19 @@ mod tests {
         let (mut parts, ()) = request.body(()).expect("request").into_parts();
         parts.extensions.insert(ConnectInfo(peer.parse::<SocketAddr>().expect("address")));
         Admin::from_request_parts(&mut parts, &state).await
+    }
+
+    #[test]
+    fn token_comparison_is_exact() {
+        assert!(constant_time_eq(b"s3cret", b"s3cret"));
+        assert!(constant_time_eq(b"", b""));
+        for wrong in [&b"s3cre"[..], b"s3cret2", b"S3cret", b"s3creu", b"", b"\0s3cret"] {
+            assert!(!constant_time_eq(wrong, b"s3cret"), "{wrong:?}");
+        }
+        let long = vec![b'x'; 4096];
+        let mut flipped = long.clone();
+        flipped[4095] ^= 1;
+        assert!(constant_time_eq(&long, &long.clone()) && !constant_time_eq(&flipped, &long));
     }
 
     #[tokio::test]

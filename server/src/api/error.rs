@@ -1,5 +1,6 @@
 //! Typed API errors and their JSON form: `{"error": {"code", "message", "parameter"}}`.
 
+use crate::echo::{bound_message, echo};
 use crate::render::RenderError;
 use crate::render::view_style::{StyleError, StyleTarget};
 use crate::scene::camera_params::CameraError;
@@ -130,7 +131,10 @@ impl ApiError {
             | ApiError::TooLarge { parameter, .. } => parameter.clone(),
             _ => None,
         };
-        ErrorDetail { code: self.code(), message: self.to_string(), parameter }
+        // Messages and parameter names may repeat client input: bound them (a safety net
+        // behind the bounded echoes where the messages are made).
+        let parameter = parameter.map(|p| echo(&p).to_string());
+        ErrorDetail { code: self.code(), message: bound_message(&self.to_string()), parameter }
     }
 
     fn retry_after(&self) -> Option<u32> {
@@ -175,9 +179,25 @@ impl From<StyleError> for ApiError {
     fn from(error: StyleError) -> ApiError {
         let parameter = match &error.target {
             StyleTarget::View => "style".to_owned(),
-            StyleTarget::Layer(name) => format!("layer_styles.{name}"),
+            StyleTarget::Layer(name) => format!("layer_styles.{}", echo(name)),
         };
-        let message = format!("{parameter}: {}", error.error);
+        // The render errors print names as given; repeat them bounded.
+        let cause = match &error.error {
+            RenderError::UnknownPreset { name, known } => {
+                format!("unknown style preset `{}`; presets: {known}", echo(name))
+            }
+            RenderError::UnknownLayer { name, known } => {
+                format!("style layer `{}` is not a layer of this scene; layers: {known}", echo(name))
+            }
+            RenderError::LayerSlots { name, max } => {
+                format!(
+                    "style layer `{}`: only the first {max} vegetation layers can have styles of their own",
+                    echo(name)
+                )
+            }
+            other => bound_message(&other.to_string()),
+        };
+        let message = format!("{parameter}: {cause}");
         match &error.error {
             RenderError::UnknownPreset { .. } => ApiError::NotFound(message),
             RenderError::Style { field, .. } => ApiError::invalid(format!("{parameter}.{field}"), message),

@@ -5,6 +5,7 @@
 use super::AppState;
 use super::auth::Admin;
 use super::error::{ApiError, ErrorBody};
+use crate::echo::echo;
 use crate::fields::{ColorMapName, ColorMapSpec, HATCH_COLORS, Legend, MappingTarget};
 use crate::store::{LayerMeta, StoreError, UploadRequest};
 use axum::Json;
@@ -61,13 +62,13 @@ impl LegendQuery {
                     .split(',')
                     .map(|v| v.trim().parse::<f64>())
                     .collect::<Result<_, _>>()
-                    .map_err(|_| ApiError::invalid("range", format!("range {text:?} must read min,max")))?;
+                    .map_err(|_| ApiError::invalid("range", format!("range {:?} must read min,max", echo(text))))?;
                 match ends[..] {
                     [lo, hi] if lo.is_finite() && hi.is_finite() && lo != hi => Some([lo, hi]),
                     _ => {
                         return Err(ApiError::invalid(
                             "range",
-                            format!("range {text:?} needs two different finite values: min,max"),
+                            format!("range {:?} needs two different finite values: min,max", echo(text)),
                         ));
                     }
                 }
@@ -86,7 +87,7 @@ impl LegendQuery {
                     _ => {
                         return Err(ApiError::invalid(
                             "color",
-                            format!("color {text:?} must read r,g,b with sRGB components within 0…1"),
+                            format!("color {:?} must read r,g,b with sRGB components within 0…1", echo(text)),
                         ));
                     }
                 };
@@ -117,6 +118,9 @@ fn query_error(e: serde_path_to_error::Error<serde_urlencoded::de::Error>) -> Ap
 
 /// Maps a store error to the API error with the same status.
 pub fn store_error(error: StoreError) -> ApiError {
+    if let StoreError::InvalidField { field, .. } = &error {
+        return ApiError::invalid(*field, error.to_string());
+    }
     let message = error.to_string();
     match error.status() {
         404 => ApiError::NotFound(message),

@@ -27,7 +27,7 @@ use artmaps::ArtMaps;
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, FromRef};
 use axum::handler::HandlerWithoutStateExt;
-use axum::http::{HeaderName, HeaderValue, Request};
+use axum::http::{HeaderName, HeaderValue, Request, header};
 use axum::routing::{get, post};
 use cache::RenderCache;
 use metrics::Metrics;
@@ -226,8 +226,10 @@ fn cors(origins: &[String]) -> Result<CorsLayer, ServerError> {
     Ok(CorsLayer::new()
         .allow_origin(allow)
         .allow_methods(tower_http::cors::Any)
-        .allow_headers(tower_http::cors::Any)
-        .expose_headers([axum::http::header::ETAG, HeaderName::from_static("x-render-ms")]))
+        // Named, not `*`: browsers never count `Authorization` under a wildcard, so the admin
+        // token could not be sent cross-origin.
+        .allow_headers([header::AUTHORIZATION, header::CONTENT_TYPE, header::IF_NONE_MATCH])
+        .expose_headers([header::ETAG, HeaderName::from_static("x-render-ms")]))
 }
 
 /// Identifies what an image depends on besides the request: the scene file, the renderer

@@ -182,7 +182,7 @@ impl ViewParams {
                 text.split(',')
                     .map(|v| v.trim().parse::<f32>())
                     .collect::<Result<Vec<_>, _>>()
-                    .map_err(|_| ApiError::bad("center", format!("center {text:?} is not x,y")))?,
+                    .map_err(|_| ApiError::bad("center", format!("center {:?} is not x,y", crate::echo::echo(text))))?,
             ),
             None => None,
         };

@@ -237,26 +237,55 @@ impl Legend {
 }
 
 /// About four to seven round tick values (1, 2 or 5 × 10ᵏ apart) within [lo, hi] (either order),
-/// always including both ends when no round value is near them, with printed labels.
+/// always including both ends when no round value is near them, with printed labels (see
+/// [`tick_label`]).
 fn nice_ticks(lo: f64, hi: f64) -> Vec<(f64, String)> {
     let (a, b) = if lo <= hi { (lo, hi) } else { (hi, lo) };
     let span = b - a;
     if !(span.is_finite() && span > 0.0) {
-        return vec![(a, format_number(a, 0))];
+        let label = if scientific(a.abs()) { format!("{a:e}") } else { format_number(a, 0) };
+        return vec![(a, label)];
     }
     let raw = span / 6.0;
     let mag = 10f64.powf(raw.log10().floor());
     let step = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).find(|s| *s >= raw).unwrap_or(10.0 * mag);
-    // Digits after the decimal point for this step (0 for steps ≥ 1); the value is small.
-    let decimals = (-step.log10().floor()).max(0.0) as usize;
+    let magnitude = a.abs().max(b.abs());
     let first = (a / step).ceil() * step;
     let mut ticks = Vec::new();
     let mut v = first;
     while v <= b + step * 1e-9 && ticks.len() < 12 {
-        ticks.push((v, format_number(v, decimals)));
+        ticks.push((v, tick_label(v, step, magnitude)));
         v += step;
     }
     ticks
+}
+
+/// Whether values of this magnitude are labelled in scientific notation: from 10⁶ up and
+/// below 10⁻³.
+fn scientific(magnitude: f64) -> bool {
+    magnitude != 0.0 && !(1e-3..1e6).contains(&magnitude)
+}
+
+/// The decimal exponent of `v` (≠ 0), robust to values a rounding error below a power of ten.
+fn exponent(v: f64) -> i32 {
+    (v.abs().log10() + 1e-9).floor() as i32
+}
+
+/// The label of tick `v` on a bar with ticks `step` apart over values up to `magnitude`:
+/// fixed-point with the decimals the step needs, or — for magnitudes from 10⁶ up or below
+/// 10⁻³ — scientific notation with the digits the step needs (`2e299`, `1.5e6`, `3e-5`).
+fn tick_label(v: f64, step: f64, magnitude: f64) -> String {
+    if scientific(magnitude) {
+        if v.abs() < step * 1e-6 {
+            return "0".to_string();
+        }
+        let digits = (exponent(v) - exponent(step)).clamp(0, 15) as usize;
+        format!("{v:.digits$e}")
+    } else {
+        // Digits after the decimal point for this step (0 for steps ≥ 1); the value is small.
+        let decimals = (-step.log10().floor()).clamp(0.0, 17.0) as usize;
+        format_number(v, decimals)
+    }
 }
 
 /// A number with `decimals` digits, without a negative zero.
@@ -354,6 +383,24 @@ mod tests {
         assert_eq!(labels(0.12, 0.31), ["0.15", "0.20", "0.25", "0.30"]);
         assert_eq!(labels(-0.5, 0.5), ["-0.4", "-0.2", "0.0", "0.2", "0.4"]);
         assert_eq!(labels(3.0, 3.0), ["3"]);
+    }
+
+    /// Huge and tiny values get scientific notation with the digits the step needs, never
+    /// hundreds of digits.
+    #[test]
+    fn ticks_of_huge_and_tiny_values_are_short() {
+        let labels = |lo, hi| nice_ticks(lo, hi).into_iter().map(|t| t.1).collect::<Vec<_>>();
+        assert_eq!(labels(0.0, 1e300), ["0", "2e299", "4e299", "6e299", "8e299", "1.0e300"]);
+        assert_eq!(labels(1e6, 1.5e6), ["1.0e6", "1.1e6", "1.2e6", "1.3e6", "1.4e6", "1.5e6"]);
+        assert_eq!(labels(-3e7, 3e7), ["-3e7", "-2e7", "-1e7", "0", "1e7", "2e7", "3e7"]);
+        assert_eq!(labels(0.0, 5e-5), ["0", "1e-5", "2e-5", "3e-5", "4e-5", "5e-5"]);
+        assert_eq!(labels(0.0, 999_000.0), ["0", "200000", "400000", "600000", "800000"]);
+        assert_eq!(labels(1e300, 1e300), ["1e300"]);
+        for (lo, hi) in [(-1e308, 1e308), (1e-300, 2e-300), (0.0, f64::MAX), (12345.678, 12345.679)] {
+            for label in labels(lo, hi) {
+                assert!(label.len() <= 24, "{lo}…{hi}: {label}");
+            }
+        }
     }
 
     #[test]

@@ -51,7 +51,7 @@ pub enum FieldError {
     #[error(transparent)]
     Crs(#[from] ReprojectError),
     /// Malformed input that is not a raster error (NetCDF structure, unknown format, …).
-    #[error("{context}: {message}")]
+    #[error("{}: {message}", crate::echo::echo(.context))]
     Format {
         /// The file or part concerned.
         context: String,
@@ -77,7 +77,7 @@ pub enum FieldError {
         scene: String,
     },
     /// A timestamp that is not ISO 8601 or CF time that cannot be converted.
-    #[error("invalid time \"{text}\": {reason}")]
+    #[error("invalid time \"{}\": {reason}", crate::echo::echo(.text))]
     Time {
         /// The text as given.
         text: String,

@@ -53,7 +53,12 @@ pub fn read_netcdf(bytes: &[u8], name: &str, opts: &LoadOptions) -> Result<Field
     let names = || candidates.iter().map(|v| v.name().to_string()).collect::<Vec<_>>().join(", ");
     let var = match opts.variable.as_deref() {
         Some(wanted) => *candidates.iter().find(|v| v.name() == wanted).ok_or_else(|| {
-            FieldError::Invalid(format!("{name}: no gridded variable \"{wanted}\" (gridded variables: {})", names()))
+            FieldError::Invalid(format!(
+                "{}: no gridded variable \"{}\" (gridded variables: {})",
+                crate::echo::echo(name),
+                crate::echo::echo(wanted),
+                names()
+            ))
         })?,
         None => match candidates.as_slice() {
             [only] => *only,

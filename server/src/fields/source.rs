@@ -239,7 +239,8 @@ fn rename_error(e: gis::GisError, scratch: &Path, name: &str) -> FieldError {
 }
 
 /// Checks the grid size a GeoTIFF or ASCII grid announces in its header against `max_cells`
-/// before anything is decoded.
+/// before anything is decoded. An ASCII grid's header is parsed by the reader's own header
+/// parser, so what is checked is what would be allocated.
 fn check_raster_header(bytes: &[u8], format: FieldFormat, name: &str, max_cells: u64) -> Result<(), FieldError> {
     let (w, h) = match format {
         FieldFormat::GeoTiff => {
@@ -254,18 +255,15 @@ fn check_raster_header(bytes: &[u8], format: FieldFormat, name: &str, max_cells:
             (u64::from(w), u64::from(h))
         }
         FieldFormat::AsciiGrid => {
-            let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]).to_ascii_lowercase();
-            let value = |key: &str| -> u64 {
-                head.lines()
-                    .filter_map(|l| {
-                        let mut t = l.split_whitespace();
-                        (t.next()? == key).then(|| t.next()?.parse::<f64>().ok()).flatten()
-                    })
-                    .next()
-                    .filter(|v| v.is_finite() && *v >= 0.0)
-                    .map_or(0, |v| v.min(u64::MAX as f64) as u64)
+            // The header as the reader reads it (byte-order marks, any number of blank lines);
+            // the reader refuses anything that is not UTF-8 text before allocating.
+            let Ok(text) = std::str::from_utf8(bytes) else {
+                return Err(FieldError::Format {
+                    context: name.to_string(),
+                    message: "not an ASCII grid (the file is not text)".into(),
+                });
             };
-            (value("ncols"), value("nrows"))
+            gis::ascii_grid::ascii_grid_size(Path::new(name), text)?
         }
         FieldFormat::NetCdf => return Ok(()),
     };
@@ -325,5 +323,20 @@ mod tests {
         let err = check_raster_header(big, FieldFormat::AsciiGrid, "big.asc", 1 << 24).unwrap_err();
         assert!(err.is_too_large(), "{err}");
         assert!(check_raster_header(b"ncols 3\nnrows 2\n", FieldFormat::AsciiGrid, "a.asc", 6).is_ok());
+    }
+
+    /// The header check reads the header as the reader does: a byte-order mark before a key
+    /// or any number of blank lines do not hide a size over the limit.
+    #[test]
+    fn ascii_header_limit_sees_what_the_reader_sees() {
+        let tail = "xllcorner 0\nyllcorner 0\ncellsize 1\n1 2 3\n";
+        let bom = format!("ncols 4200\n\u{feff}nrows 4200\n{tail}");
+        let blank = format!("ncols 4200\n{}nrows 4200\n{tail}", "\n".repeat(4096));
+        let spaced = format!("ncols 4200\n{}NROWS 4200\n{tail}", "   \r\n".repeat(1000));
+        for text in [bom, blank, spaced] {
+            let err = check_raster_header(text.as_bytes(), FieldFormat::AsciiGrid, "big.asc", 1 << 24).unwrap_err();
+            assert!(err.is_too_large(), "{err}");
+            assert!(err.to_string().contains("big.asc"), "{err}");
+        }
     }
 }

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use super::crs::Crs;
 use super::error::GisError;
 use super::raster::{self, GeoTransform, Raster};
+use crate::echo::echo;
 
 /// Header keys, lower case.
 const KEYS: &[&str] =
@@ -53,12 +54,20 @@ pub fn read_ascii_grid(path: &Path) -> Result<Raster, GisError> {
     Ok(raster)
 }
 
-/// Parses the text of an ASCII grid; the CRS is left [`Crs::Unspecified`].
-pub fn parse_ascii_grid(path: &Path, text: &str) -> Result<Raster, GisError> {
-    let err = |line: usize, message: String| GisError::AsciiGrid { path: path.to_path_buf(), line, message };
-    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l)).peekable();
+/// The lines of `text`, numbered from 1.
+fn numbered_lines(text: &str) -> std::iter::Peekable<impl Iterator<Item = (usize, &str)>> {
+    text.lines().enumerate().map(|(i, l)| (i + 1, l)).peekable()
+}
 
-    // Header: `key value` lines until the first line that starts with a number.
+/// Reads the header: `key value` lines (blank lines skipped, a byte-order mark before a key
+/// ignored) until the first line that starts with a number. Returns the header and the
+/// number of the first value line.
+fn parse_header<'a>(
+    path: &Path,
+    text: &str,
+    lines: &mut std::iter::Peekable<impl Iterator<Item = (usize, &'a str)>>,
+) -> Result<(Header, usize), GisError> {
+    let err = |line: usize, message: String| GisError::AsciiGrid { path: path.to_path_buf(), line, message };
     let mut header = Header::default();
     while let Some(&(line_no, line)) = lines.peek() {
         let mut tokens = line.split_whitespace();
@@ -71,28 +80,57 @@ pub fn parse_ascii_grid(path: &Path, text: &str) -> Result<Raster, GisError> {
         }
         lines.next();
         let lower = key.trim_start_matches('\u{feff}').to_ascii_lowercase();
+        let shown = echo(key);
         let index = KEYS
             .iter()
             .position(|k| *k == lower)
-            .ok_or_else(|| err(line_no, format!("unknown header key \"{key}\"")))?;
+            .ok_or_else(|| err(line_no, format!("unknown header key \"{shown}\"")))?;
         let value = match (tokens.next(), tokens.next()) {
             (Some(v), None) => v,
             _ => {
-                return Err(err(line_no, format!("header key \"{key}\" needs exactly one value")));
+                return Err(err(line_no, format!("header key \"{shown}\" needs exactly one value")));
             }
         };
         let value: f64 = value
             .parse()
             .ok()
             .filter(|v: &f64| v.is_finite())
-            .ok_or_else(|| err(line_no, format!("\"{value}\" is not a number for {key}")))?;
+            .ok_or_else(|| err(line_no, format!("\"{}\" is not a number for {shown}", echo(value))))?;
         if header.entries[index].is_some() {
-            return Err(err(line_no, format!("header key \"{key}\" appears twice")));
+            return Err(err(line_no, format!("header key \"{shown}\" appears twice")));
         }
         header.entries[index] = Some(Entry { value, line: line_no });
     }
-
     let header_end = lines.peek().map_or(text.lines().count() + 1, |&(n, _)| n);
+    Ok((header, header_end))
+}
+
+/// The `ncols × nrows` an ASCII grid's header announces, read exactly as
+/// [`parse_ascii_grid`] reads it (same keys, blank lines, byte-order marks and errors), so a
+/// size limit can be checked before any value is decoded. Not checked against
+/// [`raster::MAX_CELLS`].
+pub fn ascii_grid_size(path: &Path, text: &str) -> Result<(u64, u64), GisError> {
+    let mut lines = numbered_lines(text);
+    let (header, header_end) = parse_header(path, text, &mut lines)?;
+    Ok((count(path, &header, header_end, "ncols")?, count(path, &header, header_end, "nrows")?))
+}
+
+/// A positive integral header value (`ncols`, `nrows`); values past `u64::MAX` saturate.
+fn count(path: &Path, header: &Header, header_end: usize, key: &str) -> Result<u64, GisError> {
+    let err = |line: usize, message: String| GisError::AsciiGrid { path: path.to_path_buf(), line, message };
+    let e = header.get(key).ok_or_else(|| err(header_end, format!("missing header key \"{key}\"")))?;
+    if e.value < 1.0 || e.value.fract() != 0.0 {
+        return Err(err(e.line, format!("{key} must be a positive integer, not {}", e.value)));
+    }
+    // A positive integral f64; values past u64::MAX saturate and fail the size check.
+    Ok(e.value as u64)
+}
+
+/// Parses the text of an ASCII grid; the CRS is left [`Crs::Unspecified`].
+pub fn parse_ascii_grid(path: &Path, text: &str) -> Result<Raster, GisError> {
+    let err = |line: usize, message: String| GisError::AsciiGrid { path: path.to_path_buf(), line, message };
+    let mut lines = numbered_lines(text);
+    let (header, header_end) = parse_header(path, text, &mut lines)?;
     let (width, height, transform, nodata) = interpret_header(path, &header, header_end)?;
 
     // Values: whitespace-separated, any number per line.
@@ -105,9 +143,9 @@ pub fn parse_ascii_grid(path: &Path, text: &str) -> Result<Raster, GisError> {
             if data.len() == expected {
                 return Err(err(line_no, format!("more than ncols × nrows = {width} × {height} = {expected} values")));
             }
-            let v: f64 = token.parse().map_err(|_| err(line_no, format!("\"{token}\" is not a number")))?;
+            let v: f64 = token.parse().map_err(|_| err(line_no, format!("\"{}\" is not a number", echo(token))))?;
             if v.is_infinite() {
-                return Err(err(line_no, format!("value \"{token}\" is infinite")));
+                return Err(err(line_no, format!("value \"{}\" is infinite", echo(token))));
             }
             data.push(v);
         }
@@ -131,7 +169,6 @@ fn interpret_header(
     header_end: usize,
 ) -> Result<(usize, usize, GeoTransform, Option<f64>), GisError> {
     let err = |line: usize, message: String| GisError::AsciiGrid { path: path.to_path_buf(), line, message };
-    let require = |key: &str| header.get(key).ok_or_else(|| err(header_end, format!("missing header key \"{key}\"")));
     // The entry of `a` or `b` (exactly one must be given), and whether it is `b`.
     let one_of = |a: &str, b: &str| match (header.get(a), header.get(b)) {
         (Some(e), None) => Ok((e, false)),
@@ -139,16 +176,8 @@ fn interpret_header(
         (Some(_), Some(e)) => Err(err(e.line, format!("both \"{a}\" and \"{b}\" given"))),
         (None, None) => Err(err(header_end, format!("missing header key \"{a}\" (or \"{b}\")"))),
     };
-    let count = |key: &str| -> Result<u64, GisError> {
-        let e = require(key)?;
-        if e.value < 1.0 || e.value.fract() != 0.0 {
-            return Err(err(e.line, format!("{key} must be a positive integer, not {}", e.value)));
-        }
-        // A positive integral f64; values past u64::MAX saturate and fail the size check.
-        Ok(e.value as u64)
-    };
-    let ncols = count("ncols")?;
-    let nrows = count("nrows")?;
+    let ncols = count(path, header, header_end, "ncols")?;
+    let nrows = count(path, header, header_end, "nrows")?;
     raster::check_dimensions(path, ncols, nrows)?;
     // Both fit in MAX_CELLS, so they fit in usize.
     let (width, height) = (ncols as usize, nrows as usize);

@@ -114,7 +114,7 @@ pub enum GisError {
         message: String,
     },
     /// A CRS string that is not an `EPSG:<code>` this crate knows.
-    #[error("unknown CRS \"{crs}\": {reason}")]
+    #[error("unknown CRS \"{}\": {reason}", crate::echo::echo(.crs))]
     UnknownCrs {
         /// The string as given.
         crs: String,

@@ -25,7 +25,7 @@ use super::geotiff::GeoKeyValues;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReprojectError {
     /// The CRS is known to exist but this crate cannot transform it.
-    #[error("unsupported CRS {crs}: {reason}")]
+    #[error("unsupported CRS {}: {reason}", crate::echo::echo(.crs))]
     Unsupported {
         /// The CRS as text (e.g. `EPSG:27700` or a GeoKey description).
         crs: String,
@@ -36,7 +36,7 @@ pub enum ReprojectError {
     #[error("the data has no coordinate reference system: give one (e.g. crs=EPSG:4326) or assume the scene's")]
     Missing,
     /// `proj4rs` rejected a definition.
-    #[error("invalid CRS definition \"{definition}\": {message}")]
+    #[error("invalid CRS definition \"{}\": {message}", crate::echo::echo(.definition))]
     Invalid {
         /// The PROJ.4 string.
         definition: String,

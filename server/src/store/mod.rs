@@ -46,6 +46,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use serde::{Deserialize, Serialize};
 use tracing::warn;
 
+use crate::echo::echo;
 use crate::fields::{
     ClassInfo, ColorMapSpec, Field, FieldError, FieldKind, FieldStep, Legend, LoadOptions, Lut, SceneGeo, format_time,
     load_bytes, parse_time,
@@ -63,7 +64,7 @@ pub enum StoreError {
     #[error(transparent)]
     Field(#[from] FieldError),
     /// No layer with this id → 404.
-    #[error("unknown layer \"{id}\"")]
+    #[error("unknown layer \"{}\"", echo(.id))]
     NotFound {
         /// The id asked for.
         id: String,
@@ -85,6 +86,14 @@ pub enum StoreError {
     /// An unusable layer name or upload option → 422.
     #[error("{0}")]
     Invalid(String),
+    /// An unusable text field of an upload (`name`, `units`, `filename`) → 422 naming it.
+    #[error("{field}: {message}")]
+    InvalidField {
+        /// The upload parameter.
+        field: &'static str,
+        /// What is wrong with it.
+        message: String,
+    },
     /// The data directory could not be read or written → 500.
     #[error("{}: {source}", path.display())]
     Io {
@@ -112,7 +121,7 @@ impl StoreError {
             StoreError::TooLarge { .. } => 413,
             StoreError::Field(e) if e.is_too_large() => 413,
             StoreError::Field(FieldError::Gis(crate::gis::GisError::Io { .. })) => 500,
-            StoreError::Field(_) | StoreError::Invalid(_) => 422,
+            StoreError::Field(_) | StoreError::Invalid(_) | StoreError::InvalidField { .. } => 422,
             StoreError::Io { .. } | StoreError::Corrupt { .. } => 500,
         }
     }
@@ -154,14 +163,16 @@ pub struct UploadRequest {
     pub kind: Option<FieldKind>,
     /// ISO 8601 time stamp of a single-grid upload (a step of a series).
     pub time: Option<String>,
-    /// Original file name (format fallback and messages).
+    /// Original file name (format fallback and messages); at most 255 characters, no control
+    /// characters.
     pub filename: Option<String>,
     /// CRS to use instead of the file's: `EPSG:<code>`, a PROJ.4 string, or `scene` to assume
     /// the scene's CRS. Needed for ESRI ASCII grids (no `.prj` in an upload).
     pub crs: Option<String>,
     /// NetCDF variable.
     pub variable: Option<String>,
-    /// Units of the values (overrides the file's).
+    /// Units of the values (overrides the file's); at most 100 characters, no control
+    /// characters.
     pub units: Option<String>,
     /// Class names of a label field: `1=Water,2=Developed,…`.
     pub classes: Option<String>,
@@ -314,6 +325,12 @@ impl Store {
             return Err(StoreError::TooLarge { what: "upload".into(), size, limit: self.limits.max_upload_bytes });
         }
         let name = check_name(&req.name)?;
+        if let Some(units) = &req.units {
+            check_text("units", units, 100)?;
+        }
+        if let Some(filename) = &req.filename {
+            check_text("filename", filename, 255)?;
+        }
         let kind = req.kind.ok_or_else(|| StoreError::Invalid("kind is required: scalar or label".into()))?;
         let crs = match req.crs.as_deref().map(str::trim) {
             None | Some("") => None,
@@ -676,12 +693,32 @@ fn check_name(name: &str) -> Result<String, StoreError> {
     let name = name.trim();
     let chars = name.chars().count();
     if chars == 0 || chars > 100 {
-        return Err(StoreError::Invalid(format!("layer name must have 1–100 characters, has {chars}")));
+        return Err(StoreError::InvalidField {
+            field: "name",
+            message: format!("layer name must have 1–100 characters, has {chars}"),
+        });
     }
-    if name.chars().any(char::is_control) {
-        return Err(StoreError::Invalid("layer name must not contain control characters".into()));
-    }
+    check_text("name", name, 100)?;
     Ok(name.to_string())
+}
+
+/// Checks a free-text upload field: at most `max` characters, no control characters (tabs,
+/// newlines and escape sequences included).
+fn check_text(field: &'static str, text: &str, max: usize) -> Result<(), StoreError> {
+    let chars = text.chars().count();
+    if chars > max {
+        return Err(StoreError::InvalidField {
+            field,
+            message: format!("must have at most {max} characters, has {chars}"),
+        });
+    }
+    if let Some(c) = text.chars().find(|c| c.is_control()) {
+        return Err(StoreError::InvalidField {
+            field,
+            message: format!("must not contain control characters (found U+{:04X})", u32::from(c)),
+        });
+    }
+    Ok(())
 }
 
 /// `1=Water,2=Developed` → {1: "Water", 2: "Developed"}.
@@ -691,12 +728,12 @@ fn parse_class_names(text: &str) -> Result<BTreeMap<i64, String>, StoreError> {
         .map(|pair| {
             let (v, n) = pair
                 .split_once('=')
-                .ok_or_else(|| StoreError::Invalid(format!("class name \"{pair}\" must read value=name")))?;
+                .ok_or_else(|| StoreError::Invalid(format!("class name \"{}\" must read value=name", echo(pair))))?;
             let v: i64 = v
                 .trim()
                 .parse()
-                .map_err(|_| StoreError::Invalid(format!("class value \"{}\" is not an integer", v.trim())))?;
-            let n = check_name(n).map_err(|e| StoreError::Invalid(format!("class {v}: {e}")))?;
+                .map_err(|_| StoreError::Invalid(format!("class value \"{}\" is not an integer", echo(v.trim()))))?;
+            let n = check_name(n).map_err(|e| StoreError::Invalid(format!("classes: class {v}: {e}")))?;
             Ok((v, n))
         })
         .collect()

@@ -14,7 +14,7 @@ use std::sync::Arc;
 #[derive(Debug, thiserror::Error)]
 pub enum DataError {
     /// A mapping names a layer the store does not have.
-    #[error("unknown layer {0:?}")]
+    #[error("unknown layer {:?}", crate::echo::echo(.0))]
     UnknownLayer(String),
     /// The mappings are unusable: too many, a feature used twice, a bad range, opacity or
     /// hatch colour, a target the layer's kind cannot show.
