@@ -181,22 +181,8 @@ impl From<StyleError> for ApiError {
             StyleTarget::View => "style".to_owned(),
             StyleTarget::Layer(name) => format!("layer_styles.{}", echo(name)),
         };
-        // The render errors print names as given; repeat them bounded.
-        let cause = match &error.error {
-            RenderError::UnknownPreset { name, known } => {
-                format!("unknown style preset `{}`; presets: {known}", echo(name))
-            }
-            RenderError::UnknownLayer { name, known } => {
-                format!("style layer `{}` is not a layer of this scene; layers: {known}", echo(name))
-            }
-            RenderError::LayerSlots { name, max } => {
-                format!(
-                    "style layer `{}`: only the first {max} vegetation layers can have styles of their own",
-                    echo(name)
-                )
-            }
-            other => bound_message(&other.to_string()),
-        };
+        // The render errors bound the names they repeat.
+        let cause = bound_message(&error.error.to_string());
         let message = format!("{parameter}: {cause}");
         match &error.error {
             RenderError::UnknownPreset { .. } => ApiError::NotFound(message),

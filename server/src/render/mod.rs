@@ -69,12 +69,15 @@ pub enum RenderError {
     #[error("invalid style{}: {message}", field.as_ref().map(|f| format!(" parameter `{f}`")).unwrap_or_default())]
     StyleField { field: Option<String>, message: String },
     /// A style preset name that does not exist.
-    #[error("unknown style preset `{name}`; presets: {known}")]
+    #[error("unknown style preset `{}`; presets: {known}", crate::echo::echo(.name))]
     UnknownPreset { name: String, known: String },
     /// A per-layer style for a layer the scene does not have.
-    #[error("style layer `{name}` is not a layer of this scene; layers: {known}")]
+    #[error("style layer `{}` is not a layer of this scene; layers: {known}", crate::echo::echo(.name))]
     UnknownLayer { name: String, known: String },
     /// A per-layer style for a vegetation layer beyond the style slots.
-    #[error("style layer `{name}`: only the first {max} vegetation layers can have styles of their own")]
+    #[error(
+        "style layer `{}`: only the first {max} vegetation layers can have styles of their own",
+        crate::echo::echo(.name)
+    )]
     LayerSlots { name: String, max: usize },
 }
