@@ -248,10 +248,23 @@ fn check_raster_header(bytes: &[u8], format: FieldFormat, name: &str, max_cells:
                 context: name.to_string(),
                 message: format!("cannot decode TIFF: {e}"),
             })?;
-            let (w, h) = decoder.dimensions().map_err(|e| FieldError::Format {
+            let tiff_error = |e: tiff::TiffError| FieldError::Format {
                 context: name.to_string(),
                 message: format!("cannot decode TIFF: {e}"),
-            })?;
+            };
+            let (w, h) = decoder.dimensions().map_err(tiff_error)?;
+            // Strips or tiles × samples × bytes, before any decompression (D4).
+            let decoded = gis::geotiff::decoded_bytes(&mut decoder).map_err(tiff_error)?;
+            let budget = gis::geotiff::decoding_budget(max_cells);
+            if decoded > budget {
+                return Err(FieldError::TooLarge {
+                    what: format!(
+                        "{name}: decoded TIFF data in bytes (strips or tiles × samples per pixel × bytes per sample)"
+                    ),
+                    size: decoded,
+                    limit: budget,
+                });
+            }
             (u64::from(w), u64::from(h))
         }
         FieldFormat::AsciiGrid => {
