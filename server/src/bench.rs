@@ -5,6 +5,7 @@
 //! RSS and an estimate of GPU memory. No figure here is asserted anywhere; it is measured.
 
 use crate::prep::cache::DiskCache;
+use crate::render::projection::DataView;
 use crate::render::{FrameRequest, Gpu, RenderError, RenderOptions, Renderer, Style};
 use crate::scene::camera::Camera;
 use crate::scene::config::SceneConfig;
@@ -203,25 +204,27 @@ fn run_style(
     renderer: &Renderer,
     name: &str,
     style: &Style,
+    data: &DataView,
     cameras: &[Camera],
     options: &BenchOptions,
 ) -> Result<StyleRun, BenchError> {
     let (w, h) = (options.width, options.height);
     // Warm-up: pipelines, first-use allocations.
-    renderer.render(FrameRequest::new(&cameras[0], style, w, h))?;
+    renderer.render(FrameRequest::new(&cameras[0], style, w, h).data(data))?;
     // The walk is rendered as a session would: the hatching follows the camera (eq. 6.2).
     let mut state = renderer.new_view_state();
     let mut frames = Vec::with_capacity(cameras.len());
     for camera in cameras {
         let started = Instant::now();
-        let frame = renderer.render(FrameRequest::new(camera, style, w, h).history(&mut state))?;
+        let frame = renderer.render(FrameRequest::new(camera, style, w, h).data(data).history(&mut state))?;
         encode_jpeg(&frame.image)?;
         frames.push(started.elapsed().as_secs_f64() * 1e3);
     }
     let mut state = renderer.new_view_state();
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     for camera in cameras {
-        let frame = renderer.render(FrameRequest::new(camera, style, w, h).history(&mut state).profiled())?;
+        let frame =
+            renderer.render(FrameRequest::new(camera, style, w, h).data(data).history(&mut state).profiled())?;
         let image = frame.image;
         for (pass, ms) in frame.times.unwrap_or_default() {
             passes.entry(pass.to_owned()).or_default().push(ms);
@@ -246,13 +249,16 @@ fn run_style(
 }
 
 /// Runs the benchmark: for each plant count a scene from `scene_path`'s rules, for each of
-/// `styles` the frames of [`BenchOptions`]. `cache` is the preprocessing cache to use (the
+/// `styles` the frames of [`BenchOptions`], and when `data` has mappings the same frames again
+/// with its data layers (a style named `… + data`), so the two compare within one run. `cache` is the preprocessing cache to use (the
 /// first run bakes, later runs load).
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     gpu: Arc<Gpu>,
     scene_path: &Path,
     plant_counts: &[usize],
     styles: &[(String, Style)],
+    data: &DataView,
     options: &BenchOptions,
     cache: Option<Arc<DiskCache>>,
     mut progress: impl FnMut(&str),
@@ -273,9 +279,13 @@ pub fn run(
             copy_pass_ms = Stat::of(&renderer.time_copy_pass(options.width, options.height, options.frames.max(1))?);
         }
         let mut runs = Vec::new();
-        for (name, style) in styles {
-            progress(&format!("{} plants, style {name}", scene.plant_count()));
-            runs.push(run_style(&renderer, name, style, &cameras, options)?);
+        let views = std::iter::once((String::new(), DataView::default()))
+            .chain((!data.mappings.is_empty()).then(|| (" + data".to_owned(), data.clone())));
+        for (suffix, data) in views {
+            for (name, style) in styles {
+                progress(&format!("{} plants, style {name}{suffix}", scene.plant_count()));
+                runs.push(run_style(&renderer, &format!("{name}{suffix}"), style, &data, &cameras, options)?);
+            }
         }
         scenes.push(SceneRun {
             plants: scene.plant_count(),

@@ -183,6 +183,9 @@ struct BenchArgs {
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    /// With --mappings, every style is measured twice: without and with the data layers.
+    #[command(flatten)]
+    data: DataArgs,
     #[command(flatten)]
     cache: CacheArgs,
 }
@@ -235,17 +238,24 @@ struct RenderArgs {
     /// scene metres across; --yaw turns the heading that points up (0 north).
     #[arg(long, value_name = "CX,CY,WIDTH", allow_hyphen_values = true, conflicts_with_all = ["pos", "pitch", "fov"])]
     plan: Option<String>,
+    #[command(flatten)]
+    data: DataArgs,
+    #[command(flatten)]
+    cache: CacheArgs,
+}
+
+/// Data layers drawn into the frames of `render` and `bench`.
+#[derive(Args)]
+struct DataArgs {
     /// Layer store of the data layers named in --mappings (the server's --data-dir).
     #[arg(long, env = "LANDSKETCH_DATA_DIR", default_value = "landsketch-data")]
     data_dir: PathBuf,
-    /// Data-layer mappings: a JSON array as in the render API (README, "Data layers") or a file.
+    /// Data-layer mappings: a JSON array as in the render API (guide, "Data layers") or a file.
     #[arg(long)]
     mappings: Option<String>,
     /// ISO 8601 time of the data layers.
     #[arg(long)]
     time: Option<String>,
-    #[command(flatten)]
-    cache: CacheArgs,
 }
 
 fn main() -> Result<()> {
@@ -459,7 +469,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let gpu = Arc::new(Gpu::new()?);
     let renderer = Renderer::with_options(gpu, &scene, &args.cache.render_options()?)?;
     let started = std::time::Instant::now();
-    let data = data_view(args)?;
+    let data = data_view(&args.data)?;
     let frame = renderer.render(FrameRequest::new(&camera, &style, args.width, args.height).data(&data))?;
     let (image, stats) = (frame.image, frame.stats);
     info!(
@@ -475,7 +485,7 @@ fn render(args: &RenderArgs) -> Result<()> {
 
 /// The data layers of `--mappings` from the layer store in `--data-dir`; Table 9.1 warnings
 /// and clamped times go to stderr.
-fn data_view(args: &RenderArgs) -> Result<DataView> {
+fn data_view(args: &DataArgs) -> Result<DataView> {
     let Some(arg) = &args.mappings else { return Ok(DataView::default()) };
     let text = if arg.trim_start().starts_with('[') {
         arg.to_owned()
@@ -599,7 +609,8 @@ fn bench(args: &BenchArgs) -> Result<()> {
     let options = BenchOptions { frames: args.frames, width: args.width, height: args.height, step: args.step };
     let cache = args.cache.render_options()?.cache;
     let gpu = Arc::new(Gpu::new()?);
-    let report = run(gpu, &args.scene, &args.plants, &styles, &options, cache, |step| info!("{step}"))?;
+    let data = data_view(&args.data)?;
+    let report = run(gpu, &args.scene, &args.plants, &styles, &data, &options, cache, |step| info!("{step}"))?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());

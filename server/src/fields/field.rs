@@ -83,6 +83,8 @@ pub struct Field {
     units: Option<String>,
     steps: Vec<FieldStep>,
     classes: Vec<ClassInfo>,
+    /// Smallest and largest valid value over all steps, found once: every mapped frame asks.
+    range: (f64, f64),
 }
 
 impl Field {
@@ -134,7 +136,11 @@ impl Field {
             FieldKind::Label => label_classes(&steps)?,
         };
         let units = units.map(|u| u.trim().to_string()).filter(|u| !u.is_empty());
-        Ok(Field { kind, crs, units, steps, classes })
+        let range = steps
+            .iter()
+            .filter_map(|s| s.raster.valid_range())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |acc, r| (acc.0.min(r.0), acc.1.max(r.1)));
+        Ok(Field { kind, crs, units, steps, classes, range })
     }
 
     /// Scalar or label.
@@ -181,10 +187,7 @@ impl Field {
 
     /// Smallest and largest valid value over all steps.
     pub fn value_range(&self) -> (f64, f64) {
-        self.steps
-            .iter()
-            .filter_map(|s| s.raster.valid_range())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |acc, r| (acc.0.min(r.0), acc.1.max(r.1)))
+        self.range
     }
 
     /// The union of the steps' extents in the field's CRS.
