@@ -486,6 +486,64 @@ async fn admin_endpoints_need_the_token_or_loopback() {
     assert_eq!(get(&guarded.url("/api/scene")).await.status(), StatusCode::OK);
 }
 
+/// D9: without a token, writes need a loopback peer that names a loopback `Host` and, when it
+/// sends an `Origin`, a loopback origin (no CSRF from a foreign page, no DNS rebinding).
+#[tokio::test]
+async fn tokenless_writes_refuse_foreign_hosts_and_origins() {
+    let open = TestServer::shared();
+    let url = open.url("/api/cache/clear");
+    let port = open.addr.port();
+    let foreign_origin = client().post(&url).header("origin", "https://attacker.example").send().await.expect("POST");
+    let body = assert_error(foreign_origin, 403, "forbidden", None).await;
+    let message = body["error"]["message"].as_str().unwrap_or_default();
+    assert!(message.contains("Origin") && message.contains("token"), "{message}");
+    let text_plain = client()
+        .post(&url)
+        .header("origin", "null")
+        .header("content-type", "text/plain")
+        .body("x")
+        .send()
+        .await
+        .expect("POST");
+    assert_error(text_plain, 403, "forbidden", None).await;
+    let rebound = client().post(&url).header("host", "attacker.example").send().await.expect("POST");
+    let body = assert_error(rebound, 403, "forbidden", None).await;
+    let message = body["error"]["message"].as_str().unwrap_or_default();
+    assert!(message.contains("Host") && message.contains("token"), "{message}");
+    let rebound_port = client().post(&url).header("host", format!("attacker.example:{port}")).send().await;
+    assert_error(rebound_port.expect("POST"), 403, "forbidden", None).await;
+    // Loopback names, with or without port, and loopback origins stay allowed.
+    for (host, origin) in [
+        (format!("127.0.0.1:{port}"), None),
+        ("localhost".to_owned(), None),
+        (format!("LocalHost:{port}"), Some(format!("http://localhost:{port}"))),
+        (format!("[::1]:{port}"), Some("http://[::1]:3000".to_owned())),
+        (format!("127.0.0.1:{port}"), Some(format!("http://127.0.0.1:{port}"))),
+    ] {
+        let mut request = client().post(&url).header("host", &host);
+        if let Some(origin) = &origin {
+            request = request.header("origin", origin);
+        }
+        let response = request.send().await.expect("POST");
+        assert_eq!(response.status(), StatusCode::OK, "Host {host}, Origin {origin:?}");
+    }
+}
+
+/// D9: with a token, a write from a browser page of a foreign origin is refused even with the
+/// token; this server's own origin and the allowed CORS origins may write.
+#[tokio::test]
+async fn token_writes_refuse_cross_origin_requests() {
+    let guarded = TestServer::guarded();
+    let url = guarded.url("/api/cache/clear");
+    let write = |origin: String| client().post(&url).bearer_auth("s3cret").header("origin", origin).send();
+    let foreign = write("https://attacker.example".into()).await.expect("POST");
+    let body = assert_error(foreign, 403, "forbidden", None).await;
+    assert!(body["error"]["message"].as_str().unwrap_or_default().contains("attacker.example"), "{body}");
+    for origin in [format!("http://{}", guarded.addr), "https://maps.example.org".to_owned()] {
+        assert_eq!(write(origin.clone()).await.expect("POST").status(), StatusCode::OK, "{origin}");
+    }
+}
+
 #[tokio::test]
 async fn cors_is_off_unless_origins_are_configured() {
     let origin = "https://maps.example.org";
@@ -787,6 +845,149 @@ async fn idle_sessions_are_closed_and_sessions_are_limited() {
     }
     let mut again = connect(server, "width=32&height=24").await;
     assert!(matches!(receive(&mut again).await, Incoming::Json(hello) if hello["type"] == "hello"));
+}
+
+/// Connects a WebSocket client that sends `pings` pings with 60 KB ids and never reads:
+/// the pongs fill the socket buffers until the server cannot send. The sending task is
+/// returned (abort it when done).
+async fn stuck_client(server: &TestServer, pings: usize) -> tokio::task::JoinHandle<()> {
+    let (socket, _) = tokio_tungstenite::connect_async(server.ws_url("width=16&height=12")).await.expect("connect");
+    let (mut sink, stream) = socket.split();
+    tokio::spawn(async move {
+        let _unread = stream;
+        let ping = json!({"type": "ping", "id": "p".repeat(60_000)}).to_string();
+        for _ in 0..pings {
+            if sink.send(Message::text(ping.clone())).await.is_err() {
+                break;
+            }
+        }
+        std::future::pending::<()>().await;
+    })
+}
+
+/// D6: a client that never reads is disconnected within `--ws-send-timeout-s` and frees its
+/// `--max-sessions` slot (the idle timeout alone never fired: the server blocked on send).
+#[tokio::test]
+async fn a_client_that_never_reads_is_closed_and_frees_its_slot() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |c| {
+        c.max_sessions = 1;
+        c.ws_send_timeout_s = 1;
+    });
+    let stuck = stuck_client(&server, 400).await;
+    let started = Instant::now();
+    // The slot is taken while the client is stuck, and free again after the deadline.
+    loop {
+        match tokio_tungstenite::connect_async(server.ws_url("width=16&height=12")).await {
+            Ok((mut socket, _)) => {
+                assert!(matches!(receive(&mut socket).await, Incoming::Json(hello) if hello["type"] == "hello"));
+                break;
+            }
+            Err(tokio_tungstenite::tungstenite::Error::Http(response)) => {
+                assert_eq!(response.status().as_u16(), 503);
+            }
+            Err(other) => panic!("connect: {other}"),
+        }
+        assert!(started.elapsed() < Duration::from_secs(15), "the stuck session kept its slot");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert!(started.elapsed() > Duration::from_millis(500), "the slot was taken while the client was stuck");
+    stuck.abort();
+}
+
+/// D6: shutdown does not wait for a session blocked on a client that never reads.
+#[tokio::test]
+async fn shutdown_does_not_wait_for_a_client_that_never_reads() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |c| c.ws_send_timeout_s = 600);
+    let stuck = stuck_client(&server, 400).await;
+    // Wait until the session is blocked: its pongs no longer fit the buffers.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let started = Instant::now();
+    let stopped = tokio::task::spawn_blocking(move || server.stop()).await.expect("stop task");
+    stopped.expect("clean stop");
+    let took = started.elapsed();
+    stuck.abort();
+    assert!(took < landsketch::api::ws::CLOSE_GRACE - Duration::from_secs(1), "shutdown took {took:?}");
+}
+
+/// Writes `request` on a raw connection and reads until the server closes it (at most
+/// `wait`); returns what came back and how long the server kept the connection.
+async fn raw_exchange(server: &TestServer, request: &[u8], wait: Duration) -> (String, Duration) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut stream = TcpStream::connect(server.addr).await.expect("connect");
+    stream.write_all(request).await.expect("write");
+    let started = Instant::now();
+    let mut received = Vec::new();
+    let mut buffer = [0u8; 4096];
+    loop {
+        match tokio::time::timeout_at((started + wait).into(), stream.read(&mut buffer)).await {
+            Ok(Ok(0) | Err(_)) => break,
+            Ok(Ok(n)) => received.extend_from_slice(&buffer[..n]),
+            Err(_) => {
+                panic!("the server kept the connection open for {wait:?}; got {:?}", String::from_utf8_lossy(&received))
+            }
+        }
+    }
+    (String::from_utf8_lossy(&received).into_owned(), started.elapsed())
+}
+
+/// D8: partial headers, an idle kept-alive connection and a slow upload are cut off after
+/// `--header-timeout-s` and `--body-timeout-s`; a `Content-Length` beyond the upload limit is
+/// refused with 413 before any of the body is sent.
+#[tokio::test]
+async fn slow_clients_time_out_and_huge_bodies_are_refused_up_front() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |c| {
+        c.header_timeout_s = 1;
+        c.body_timeout_s = 1;
+    });
+    let wait = Duration::from_secs(8);
+    let (received, held) = raw_exchange(&server, b"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n", wait).await;
+    assert!(held < Duration::from_secs(4), "partial headers held for {held:?}: {received}");
+    let (received, held) = raw_exchange(&server, b"GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", wait).await;
+    assert!(received.starts_with("HTTP/1.1 200"), "{received}");
+    assert!(held < Duration::from_secs(4), "an idle keep-alive held for {held:?}");
+    let slow =
+        b"POST /api/layers?name=Slow&kind=scalar HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 1000\r\n\r\nII*\0";
+    let (received, held) = raw_exchange(&server, slow, wait).await;
+    assert!(held < Duration::from_secs(4), "a slow upload held for {held:?}: {received}");
+    assert!(received.contains("--body-timeout-s"), "{received}");
+    let huge = format!(
+        "POST /api/layers?name=Huge&kind=scalar HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {}\r\n\r\n",
+        10u64 << 30
+    );
+    let (received, held) = raw_exchange(&server, huge.as_bytes(), wait).await;
+    assert!(received.starts_with("HTTP/1.1 413"), "{received}");
+    assert!(received.contains("too_large"), "{received}");
+    assert!(held < Duration::from_secs(2), "{held:?}");
+    assert!(tree_is_empty(&dir.path().join("layers")), "nothing stored");
+}
+
+/// Whether a directory has no entries (or does not exist).
+fn tree_is_empty(dir: &std::path::Path) -> bool {
+    std::fs::read_dir(dir).map_or(true, |mut entries| entries.next().is_none())
+}
+
+/// D12: a message over `--ws-max-message` (64 KiB) gets close code 1009, not a reset.
+#[tokio::test]
+async fn an_oversized_message_is_closed_with_1009() {
+    let server = TestServer::shared();
+    let socket = connect(server, "width=32&height=24").await;
+    let (mut sink, mut stream) = socket.split();
+    let oversized = json!({"type": "ping", "id": "x".repeat(100 << 10)}).to_string();
+    // The server stops reading mid-message: the send may never finish.
+    let sender = tokio::spawn(async move { sink.send(Message::text(oversized)).await });
+    let code = loop {
+        let message = tokio::time::timeout(Duration::from_secs(30), stream.next()).await.expect("a close in time");
+        match message {
+            Some(Ok(Message::Close(frame))) => break frame.map(|f| (u16::from(f.code), f.reason.to_string())),
+            Some(Ok(_)) => {}
+            other => panic!("closed without a close frame: {other:?}"),
+        }
+    };
+    assert_eq!(code, Some((1009, "message too big".to_owned())));
+    sender.abort();
 }
 
 #[tokio::test]

@@ -278,6 +278,46 @@ async fn bad_uploads_get_422_and_change_nothing() {
     assert!(!dir.path().join("artmaps").exists(), "nothing was stored");
 }
 
+/// The signature and IHDR chunk (valid CRC) of a grey 8-bit PNG of `width` × `height`
+/// pixels, followed by an IDAT chunk of a few bytes: a header that announces an image far
+/// larger than the file.
+fn announced_png(width: u32, height: u32) -> Vec<u8> {
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut crc = flate2::Crc::new();
+        crc.update(kind);
+        crc.update(data);
+        let mut bytes = (data.len() as u32).to_be_bytes().to_vec();
+        bytes.extend_from_slice(kind);
+        bytes.extend_from_slice(data);
+        bytes.extend_from_slice(&crc.sum().to_be_bytes());
+        bytes
+    };
+    let mut header = width.to_be_bytes().to_vec();
+    header.extend_from_slice(&height.to_be_bytes());
+    header.extend_from_slice(&[8, 0, 0, 0, 0]);
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(chunk(b"IHDR", &header));
+    png.extend(chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00]));
+    png
+}
+
+/// D10: a TAM whose header announces 16384² pixels (256 MiB decoded) is refused from the
+/// header's shape, before decoding; a SAM too small likewise.
+#[tokio::test]
+async fn art_map_shapes_are_checked_on_the_header_before_decoding() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let listed = list(&server).await;
+    for (path, body, expected) in [
+        ("/api/artmaps/tam/2", announced_png(16384, 16384), "16384×16384 pixels, expected a strip of 6"),
+        ("/api/artmaps/sam/1", announced_png(4, 16384), "4×16384 pixels, expected at least 8×8"),
+    ] {
+        let message = assert_error(put(&server, path, body, None).await, 422, "invalid_parameter").await;
+        assert!(message.contains(expected), "{path}: {message:?} lacks {expected:?}");
+    }
+    assert_eq!(list(&server).await, listed, "nothing changed");
+}
+
 #[tokio::test]
 async fn writes_need_the_admin_token() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -294,6 +334,20 @@ async fn writes_need_the_admin_token() {
         assert!(openapi["paths"][path].is_object(), "{path} is documented");
     }
     assert!(openapi["paths"]["/api/artmaps/{kind}/{index}"]["put"]["security"].is_array());
+}
+
+/// D9: without a token, a foreign-origin art-map upload or delete is refused.
+#[tokio::test]
+async fn tokenless_writes_refuse_foreign_origins() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let url = server.url("/api/artmaps/tam/0");
+    let body = black_tam(TAM_SIZE, TAM_LEVELS);
+    let forged = client().put(&url).header("origin", "https://attacker.example").body(body).send().await;
+    assert_error(forged.expect("PUT"), 403, "forbidden").await;
+    let rebound = client().delete(&url).header("host", "attacker.example").send().await.expect("DELETE");
+    assert_error(rebound, 403, "forbidden").await;
+    assert_eq!(sources(&list(&server).await, "tams"), ["generated"; 4], "nothing changed");
 }
 
 #[tokio::test]

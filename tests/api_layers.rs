@@ -43,9 +43,13 @@ async fn assert_error(response: reqwest::Response, status: u16, code: &str, para
 /// A Float32 GeoTIFF (EPSG:4326) of 8 × 6 cells exactly covering the sample scene's DEM, with
 /// values `offset + column`.
 fn scene_tiff(offset: f64) -> Vec<u8> {
+    sized_scene_tiff(8, 6, offset)
+}
+
+/// [`scene_tiff`] with `width` × `height` cells.
+fn sized_scene_tiff(width: usize, height: usize, offset: f64) -> Vec<u8> {
     let dem = &loaded().0.terrain.dem;
     let e = dem.extent();
-    let (width, height) = (8, 6);
     let raster = Raster {
         width,
         height,
@@ -315,6 +319,218 @@ async fn ascii_grids_over_the_cell_limit_are_refused_however_the_header_is_laid_
     assert_eq!(tree(dir.path()), before, "nothing stored");
 }
 
+/// How a decompression bomb blows up.
+#[derive(Debug, Clone, Copy)]
+enum Bomb {
+    /// 4096 × 4096 cells of 29 Float32 samples in one-row strips that all point to the same
+    /// deflated row: 1.95 GB decoded from about 33 KB.
+    Samples,
+    /// 4096 × 4096 Float32 cells in tiles 65536 wide (the decoder decompresses and discards
+    /// their padding) that all point to the same deflated tile: 1 GiB decoded.
+    TilePadding,
+}
+
+/// A little-endian GeoTIFF (EPSG:4326, over the sample scene) whose strips or tiles all
+/// point to one small Deflate stream of zeros: what the probe uploaded (D4).
+fn bomb_tiff(bomb: Bomb) -> Vec<u8> {
+    use std::io::Write;
+    const SIDE: u32 = 4096;
+    let (samples, chunk_width, chunk_rows) = match bomb {
+        Bomb::Samples => (29u16, SIDE, 1u32),
+        Bomb::TilePadding => (1, 65536, 16),
+    };
+    let chunk_bytes = chunk_width as usize * chunk_rows as usize * usize::from(samples) * 4;
+    let mut zlib = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+    zlib.write_all(&vec![0u8; chunk_bytes]).expect("deflate");
+    let blob = zlib.finish().expect("deflate");
+    let chunks = SIDE.div_ceil(chunk_rows) * SIDE.div_ceil(chunk_width);
+    let e = loaded().0.terrain.dem.extent();
+    // Arrays after the header: (tag, type, count, bytes).
+    let shorts = |v: &[u16]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let longs = |v: &[u32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let doubles = |v: &[f64]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let (short, long, double) = (3u16, 4u16, 12u16);
+    let data_offset = 8u32;
+    let offsets = vec![data_offset; chunks as usize];
+    let counts = vec![blob.len() as u32; chunks as usize];
+    let (offsets_tag, counts_tag) = match bomb {
+        Bomb::Samples => (273, 279),
+        Bomb::TilePadding => (324, 325),
+    };
+    let mut entries: Vec<(u16, u16, u32, Vec<u8>)> = vec![
+        (256, long, 1, longs(&[SIDE])),
+        (257, long, 1, longs(&[SIDE])),
+        (258, short, u32::from(samples), shorts(&vec![32; usize::from(samples)])),
+        (259, short, 1, shorts(&[8])),
+        (262, short, 1, shorts(&[1])),
+        (offsets_tag, long, chunks, longs(&offsets)),
+        (277, short, 1, shorts(&[samples])),
+        (counts_tag, long, chunks, longs(&counts)),
+        (284, short, 1, shorts(&[1])),
+        (339, short, u32::from(samples), shorts(&vec![3; usize::from(samples)])),
+        (33550, double, 3, doubles(&[(e.max_x - e.min_x) / 4096.0, (e.max_y - e.min_y) / 4096.0, 0.0])),
+        (33922, double, 6, doubles(&[0.0, 0.0, 0.0, e.min_x, e.max_y, 0.0])),
+        (34735, short, 8, shorts(&[1, 1, 0, 1, 2048, 0, 1, 4326])),
+    ];
+    match bomb {
+        Bomb::Samples => {
+            entries.push((278, long, 1, longs(&[chunk_rows])));
+            entries.push((338, short, u32::from(samples - 1), shorts(&vec![0; usize::from(samples - 1)])));
+        }
+        Bomb::TilePadding => {
+            entries.push((322, long, 1, longs(&[chunk_width])));
+            entries.push((323, long, 1, longs(&[chunk_rows])));
+        }
+    }
+    entries.sort_by_key(|entry| entry.0);
+    let mut file = b"II*\0".to_vec();
+    let ifd_offset = data_offset as usize + blob.len();
+    file.extend_from_slice(&(ifd_offset as u32).to_le_bytes());
+    file.extend_from_slice(&blob);
+    let mut arrays = Vec::new();
+    let arrays_at = ifd_offset + 2 + entries.len() * 12 + 4;
+    file.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    for (tag, kind, count, bytes) in &entries {
+        file.extend_from_slice(&tag.to_le_bytes());
+        file.extend_from_slice(&kind.to_le_bytes());
+        file.extend_from_slice(&count.to_le_bytes());
+        if bytes.len() <= 4 {
+            let mut inline = bytes.clone();
+            inline.resize(4, 0);
+            file.extend_from_slice(&inline);
+        } else {
+            file.extend_from_slice(&((arrays_at + arrays.len()) as u32).to_le_bytes());
+            arrays.extend_from_slice(bytes);
+        }
+    }
+    file.extend_from_slice(&0u32.to_le_bytes());
+    file.extend_from_slice(&arrays);
+    file
+}
+
+/// D4: GeoTIFFs within the cell limit whose strips or tiles decode to gigabytes are refused
+/// with 413 from their tags, before anything is decompressed; nothing is stored.
+#[tokio::test]
+async fn geotiff_decompression_bombs_are_refused_before_decoding() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let before = tree(dir.path());
+    for bomb in [Bomb::Samples, Bomb::TilePadding] {
+        let file = bomb_tiff(bomb);
+        assert!(file.len() < 40_000, "{bomb:?}: {} bytes", file.len());
+        let started = std::time::Instant::now();
+        let response = upload(&server, "name=Bomb&kind=scalar&filename=bomb.tif", file).await;
+        let message = assert_error(response, 413, "too_large", None).await;
+        assert!(message.contains("bomb.tif") && message.contains("decoded"), "{bomb:?}: {message}");
+        assert!(started.elapsed() < std::time::Duration::from_secs(5), "{bomb:?} took {:?}", started.elapsed());
+    }
+    assert_eq!(tree(dir.path()), before, "nothing stored");
+}
+
+/// An ESRI ASCII grid of 2 × 2 cells with its lower-left corner on the sample scene's DEM's,
+/// the given cell size and values (uploaded with `crs=scene`).
+fn scene_grid(cellsize: f64, values: &str) -> Vec<u8> {
+    let e = loaded().0.terrain.dem.extent();
+    format!("ncols 2\nnrows 2\nxllcorner {}\nyllcorner {}\ncellsize {cellsize:e}\n{values}\n", e.min_x, e.min_y)
+        .into_bytes()
+}
+
+/// D5: values beyond the f32 range and an absurd cell size (1e306) are refused at upload
+/// (422, nothing stored) instead of being stored and failing every render or the next start.
+#[tokio::test]
+async fn layers_that_could_not_be_rendered_or_reloaded_are_refused() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let before = tree(dir.path());
+    let cell = {
+        let e = loaded().0.terrain.dem.extent();
+        (e.max_x - e.min_x) / 2.0
+    };
+    for (what, grid, expected) in [
+        ("f32 overflow", scene_grid(cell, "1 2\n3 1e39"), "1e39"),
+        ("negative f32 overflow", scene_grid(cell, "-4e38 2\n3 4"), "-4e38"),
+        ("absurd cell size", scene_grid(1e306, "1 2\n3 4"), "extent"),
+    ] {
+        let response = upload(&server, "name=Huge&kind=scalar&crs=scene&filename=huge.asc", grid).await;
+        let message = assert_error(response, 422, "invalid_parameter", None).await;
+        assert!(message.contains("huge.asc") && message.contains(expected), "{what}: {message}");
+    }
+    assert_eq!(tree(dir.path()), before, "nothing stored");
+    assert!(json_of(get(&server.url("/api/layers")).await).await["layers"].as_array().is_some_and(Vec::is_empty));
+}
+
+/// D5: a layer directory whose `meta.json` is damaged is skipped at start-up; it never makes
+/// a later upload under the same name fail (the new layer gets another id).
+#[tokio::test]
+async fn a_damaged_layer_directory_does_not_block_its_name() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let first = json_of(upload(&server, STEP_1, scene_tiff(0.0)).await).await;
+    let id = first["id"].as_str().expect("id").to_owned();
+    server.stop().expect("clean stop");
+    std::fs::write(dir.path().join("layers").join(&id).join("meta.json"), "{").expect("damage meta.json");
+    let server = TestServer::start(dir.path(), |_| {});
+    assert_eq!(get(&server.url(&format!("/api/layers/{id}"))).await.status(), StatusCode::NOT_FOUND);
+    let again = upload(&server, STEP_1, scene_tiff(0.0)).await;
+    assert_eq!(again.status(), StatusCode::CREATED);
+    let again = json_of(again).await;
+    assert_ne!(again["id"], id.as_str(), "a new id");
+    let rendered = get(&server.url(&format!("/api/layers/{}/legend.json", again["id"].as_str().expect("id")))).await;
+    assert_eq!(rendered.status(), StatusCode::OK);
+    assert!(dir.path().join("layers").join(&id).exists(), "the damaged directory is left for inspection");
+}
+
+/// D7: while a large time step is appended, the store's index stays readable: `/api/health`
+/// answers within 100 ms even with layer listings in flight, and the append neither reads
+/// the stored steps nor loses them.
+#[tokio::test]
+async fn health_answers_quickly_during_a_large_append() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let step = |day: u32| format!("name=Big&kind=scalar&time=2024-06-{day:02}T00:00:00Z&filename=big{day}.tif");
+    let big = sized_scene_tiff(2048, 2048, 0.0);
+    for day in 1..=2 {
+        assert!(upload(&server, &step(day), big.clone()).await.status().is_success());
+    }
+    let append = {
+        let url = server.url(&format!("/api/layers?{}", step(3)));
+        tokio::spawn(async move { client().post(url).body(sized_scene_tiff(2048, 2048, 5.0)).send().await })
+    };
+    let mut latencies = Vec::new();
+    while !append.is_finished() {
+        // Listings take the index; two keep the server's two worker threads busy with it.
+        let listings: Vec<_> = (0..2).map(|_| tokio::spawn(get_owned(server.url("/api/layers")))).collect();
+        let started = std::time::Instant::now();
+        assert_eq!(get(&server.url("/api/health")).await.status(), StatusCode::OK);
+        latencies.push(started.elapsed());
+        for listing in listings {
+            assert_eq!(listing.await.expect("listing"), StatusCode::OK);
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    let appended = append.await.expect("append task").expect("append");
+    assert_eq!(appended.status(), StatusCode::OK);
+    let meta = json_of(appended).await;
+    assert_eq!(meta["steps"].as_array().map(Vec::len), Some(3));
+    assert_eq!((meta["min"].as_f64(), meta["max"].as_f64()), (Some(0.0), Some(5.0 + 2047.0)));
+    // On a loaded test machine a poll may miss its time slice; a store lock held across the
+    // append's writes would stall every poll behind it instead.
+    latencies.sort();
+    let limit = std::time::Duration::from_millis(100);
+    let slow = latencies.iter().filter(|l| **l > limit).count();
+    assert!(
+        !latencies.is_empty() && slow * 10 <= latencies.len(),
+        "{slow} of {} polls over {limit:?}: {latencies:?}",
+        latencies.len()
+    );
+    assert!(latencies.last().is_some_and(|l| *l < std::time::Duration::from_secs(1)), "{latencies:?}");
+}
+
+/// The status of a GET of an owned URL (for spawned requests).
+async fn get_owned(url: String) -> StatusCode {
+    get(&url).await.status()
+}
+
 /// Text fields of an upload refuse control characters (422 naming the field), and error
 /// messages cut long client input short.
 #[tokio::test]
@@ -421,6 +637,25 @@ async fn writes_need_the_admin_token() {
     assert_error(delete(&location).await, 401, "unauthorized", None).await;
     let deleted = client().delete(&location).bearer_auth("s3cret").send().await.expect("DELETE");
     assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
+}
+
+/// D9: without a token, a foreign-origin multipart upload and a DELETE naming a foreign `Host`
+/// are refused (CSRF, DNS rebinding); nothing is stored or deleted.
+#[tokio::test]
+async fn tokenless_writes_refuse_foreign_origins_and_hosts() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    let (content_type, body) = multipart(&[("name", "Forged"), ("kind", "scalar")], "forged.tif", &scene_tiff(0.0));
+    let forged = client().post(server.url("/api/layers")).header("origin", "https://attacker.example");
+    let forged = forged.header("content-type", content_type).body(body).send().await.expect("POST");
+    assert_error(forged, 403, "forbidden", None).await;
+    assert!(tree(&dir.path().join("layers")).is_empty());
+    let created = upload(&server, STEP_1, scene_tiff(0.0)).await;
+    assert_eq!(created.status(), StatusCode::CREATED);
+    let location = server.url(created.headers()["location"].to_str().expect("ASCII"));
+    let rebound = client().delete(&location).header("host", "attacker.example").send().await.expect("DELETE");
+    assert_error(rebound, 403, "forbidden", None).await;
+    assert_eq!(get(&location).await.status(), StatusCode::OK, "still there");
 }
 
 /// POSTs a render body; returns the response.

@@ -323,3 +323,63 @@ fn tiff_header(w: u32, h: u32) -> Vec<u8> {
     b.extend_from_slice(&[0; 4]);
     b
 }
+
+/// A scalar field of one `side` × `side` step at `2024-06-<day>` covering the sample DEM,
+/// every cell `day`.
+fn big_step(side: usize, day: u32) -> landsketch::fields::Field {
+    use landsketch::fields::{Field, FieldStep};
+    use landsketch::gis::{CrsDefinition, GeoTransform, Raster};
+    let dem = read_geotiff(&fixture("boulder_SRTMGL3_derived.tif")).unwrap();
+    let e = dem.extent();
+    let raster = Raster {
+        width: side,
+        height: side,
+        data: vec![f64::from(day); side * side],
+        nodata: None,
+        transform: GeoTransform {
+            origin_x: e.min_x,
+            origin_y: e.max_y,
+            cell_width: (e.max_x - e.min_x) / side as f64,
+            cell_height: (e.max_y - e.min_y) / side as f64,
+        },
+        crs: dem.crs,
+        palette: None,
+    };
+    let time = Some(parse_time(&format!("2024-06-{day:02}T00:00:00Z")).unwrap());
+    let crs = CrsDefinition::from_crs(&dem.crs).unwrap();
+    Field::new(FieldKind::Scalar, crs, None, vec![FieldStep { time, raster }]).unwrap()
+}
+
+/// D7: a writer holds no lock that readers need. While a 64 MB time step is appended
+/// (written and fsynced) to a series of two such steps, listings and lookups answer at
+/// once instead of waiting for the append, which no longer reads the stored steps.
+#[test]
+fn reads_do_not_wait_for_a_large_append() {
+    const SIDE: usize = 4096;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::sync::Arc::new(boulder_scene());
+    let store = std::sync::Arc::new(Store::open(dir.path()).unwrap());
+    for day in 1..=2 {
+        store.add_field("Big", big_step(SIDE, day), "big.tif", &scene).unwrap();
+    }
+    let third = big_step(SIDE, 3);
+    let writer = {
+        let (store, scene) = (store.clone(), scene.clone());
+        std::thread::spawn(move || store.add_field("Big", third, "big.tif", &scene))
+    };
+    let mut slowest = std::time::Duration::ZERO;
+    let mut reads = 0;
+    while !writer.is_finished() {
+        let started = std::time::Instant::now();
+        assert_eq!(store.list().len(), 1);
+        assert!(store.find_by_name("Big").is_some());
+        slowest = slowest.max(started.elapsed());
+        reads += 1;
+    }
+    let meta = writer.join().unwrap().unwrap();
+    assert_eq!(meta.steps.len(), 3);
+    assert_eq!((meta.min, meta.max), (1.0, 3.0));
+    assert_eq!(store.field(&meta.id).unwrap().steps().len(), 3, "every step reads back");
+    // Milliseconds even on a loaded machine; the old lock was held for the whole append.
+    assert!(reads > 0 && slowest < std::time::Duration::from_millis(500), "{reads} reads, slowest {slowest:?}");
+}

@@ -542,6 +542,12 @@ fn legend(args: &LegendArgs) -> Result<()> {
 }
 
 fn serve(config: ServerConfig) -> Result<()> {
+    if landsketch::api::config::admin_token_on_command_line(std::env::args_os()) {
+        tracing::warn!(
+            "--admin-token is visible in the process list to every user of this machine; \
+             use --admin-token-file or LANDSKETCH_ADMIN_TOKEN instead"
+        );
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     runtime.block_on(async {
         let server = Server::bind(config).await?;

@@ -383,7 +383,7 @@ fn not_found(kind: ArtKind, index: usize) -> ApiError {
         (status = 200, description = "Replaced", body = ArtMapInfo),
         (status = 201, description = "Added; `Location` names its PNG", body = ArtMapInfo),
         (status = 401, description = "Admin token missing or wrong", body = ErrorBody),
-        (status = 403, description = "No admin token configured and the client is not on loopback", body = ErrorBody),
+        (status = 403, description = "Refused: without an admin token, a client not on loopback, a foreign Host or a foreign Origin; with one, a foreign Origin", body = ErrorBody),
         (status = 404, description = "Unknown kind", body = ErrorBody),
         (status = 413, description = "Body larger than the server allows", body = ErrorBody),
         (status = 422, description = "Not a PNG, or a shape that does not fit (the message says what is expected); an index beyond the count", body = ErrorBody),
@@ -400,7 +400,7 @@ pub async fn put(
         StatusCode::PAYLOAD_TOO_LARGE => {
             ApiError::too_large("body", format!("art maps are at most {MAX_ART_MAP_BYTES} bytes"))
         }
-        _ => ApiError::bad("body", e.body_text()),
+        _ => super::connections::body_error(&e, || ApiError::bad("body", e.body_text())),
     })?;
     let art = &ready.art;
     let _write = art.writes.lock().await;
@@ -416,10 +416,14 @@ pub async fn put(
     }
     let name = format!("{}/{index}", kind.name());
     let upload = body.clone();
-    let map = tokio::task::spawn_blocking(move || decode(kind, &upload, levels, &name))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))?
-        .map_err(|e| ApiError::invalid("body", e.to_string()))?;
+    let permit = state.decode_permit().await?;
+    let map = tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        decode(kind, &upload, levels, &name)
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))?
+    .map_err(|e| ApiError::invalid("body", e.to_string()))?;
     let maps = apply(ready, ArtChange::Set { index, map }).await?;
     let store = state.store().clone();
     let digest: [u8; 32] = Sha256::digest(&body).into();
@@ -449,7 +453,7 @@ pub async fn put(
     responses(
         (status = 204, description = "Restored or removed"),
         (status = 401, description = "Admin token missing or wrong", body = ErrorBody),
-        (status = 403, description = "No admin token configured and the client is not on loopback", body = ErrorBody),
+        (status = 403, description = "Refused: without an admin token, a client not on loopback, a foreign Host or a foreign Origin; with one, a foreign Origin", body = ErrorBody),
         (status = 404, description = "Unknown kind or index", body = ErrorBody),
         (status = 409, description = "An added map that is not the last of its kind", body = ErrorBody),
         (status = 503, description = "The scene is still loading", body = ErrorBody)))]

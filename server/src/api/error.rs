@@ -34,9 +34,14 @@ pub enum ApiError {
     /// A write endpoint was called without the admin token.
     #[error("this endpoint needs `Authorization: Bearer <token>`")]
     Unauthorized,
-    /// A write endpoint was called from another host while no admin token is configured.
-    #[error("without an admin token, this endpoint only accepts loopback clients")]
-    Forbidden,
+    /// A write was refused whatever the token: without an admin token, from a client not on
+    /// loopback, naming a foreign `Host` or sent from a foreign `Origin`; with one, from a
+    /// foreign `Origin` (cross-site request forgery). The message says why.
+    #[error("{0}")]
+    Forbidden(String),
+    /// The request body did not arrive within `--body-timeout-s`.
+    #[error("{0}")]
+    RequestTimeout(String),
     /// The render queue or the session limit is full; try again after `retry_after` seconds.
     #[error("{message}")]
     Busy { message: String, retry_after: u32 },
@@ -99,7 +104,8 @@ impl ApiError {
             ApiError::Conflict(_) => StatusCode::CONFLICT,
             ApiError::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::Unauthorized => StatusCode::UNAUTHORIZED,
-            ApiError::Forbidden => StatusCode::FORBIDDEN,
+            ApiError::Forbidden(_) => StatusCode::FORBIDDEN,
+            ApiError::RequestTimeout(_) => StatusCode::REQUEST_TIMEOUT,
             ApiError::Busy { .. } | ApiError::NotReady | ApiError::ShuttingDown => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) | ApiError::Storage(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
@@ -115,7 +121,8 @@ impl ApiError {
             ApiError::Conflict(_) => "conflict",
             ApiError::MethodNotAllowed => "method_not_allowed",
             ApiError::Unauthorized => "unauthorized",
-            ApiError::Forbidden => "forbidden",
+            ApiError::Forbidden(_) => "forbidden",
+            ApiError::RequestTimeout(_) => "request_timeout",
             ApiError::Busy { .. } => "busy",
             ApiError::NotReady => "not_ready",
             ApiError::ShuttingDown => "shutting_down",

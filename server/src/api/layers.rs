@@ -4,6 +4,7 @@
 
 use super::AppState;
 use super::auth::Admin;
+use super::connections::body_error;
 use super::error::{ApiError, ErrorBody};
 use crate::echo::echo;
 use crate::fields::{ColorMapName, ColorMapSpec, HATCH_COLORS, Legend, MappingTarget};
@@ -155,7 +156,7 @@ async fn read_upload(state: &AppState, query: &str, request: Request) -> Result<
         let mut file = None;
         let multipart_error = |e: axum::extract::multipart::MultipartError| match e.status() {
             StatusCode::PAYLOAD_TOO_LARGE => too_large(),
-            _ => ApiError::bad("body", e.body_text()),
+            _ => body_error(&e, || ApiError::bad("body", e.body_text())),
         };
         while let Some(field) = form.next_field().await.map_err(multipart_error)? {
             let name = field.name().unwrap_or_default().to_string();
@@ -174,7 +175,7 @@ async fn read_upload(state: &AppState, query: &str, request: Request) -> Result<
     } else {
         let bytes = Bytes::from_request(request, state).await.map_err(|e| match e.status() {
             StatusCode::PAYLOAD_TOO_LARGE => too_large(),
-            _ => ApiError::bad("body", e.body_text()),
+            _ => body_error(&e, || ApiError::bad("body", e.body_text())),
         })?;
         (bytes, None)
     };
@@ -204,7 +205,7 @@ async fn read_upload(state: &AppState, query: &str, request: Request) -> Result<
         (status = 200, description = "Time steps added to the layer of that name", body = LayerMeta),
         (status = 400, description = "Malformed request or unknown parameter", body = ErrorBody),
         (status = 401, description = "Admin token missing or wrong", body = ErrorBody),
-        (status = 403, description = "No admin token configured and the client is not on loopback", body = ErrorBody),
+        (status = 403, description = "Refused: without an admin token, a client not on loopback, a foreign Host or a foreign Origin; with one, a foreign Origin", body = ErrorBody),
         (status = 409, description = "The name belongs to a layer that cannot take these steps", body = ErrorBody),
         (status = 413, description = "Upload, raster or series larger than the server allows", body = ErrorBody),
         (status = 422, description = "Not a valid field: format, kind, CRS, time, classes, or no overlap with the scene (both extents named)", body = ErrorBody),
@@ -222,7 +223,9 @@ pub async fn upload(
     })?;
     let (bytes, req) = read_upload(&state, query.as_deref().unwrap_or_default(), request).await?;
     let store = state.store().clone();
+    let permit = state.decode_permit().await?;
     let (meta, appended) = blocking(move || {
+        let _permit = permit;
         let existing = store.find_by_name(&req.name).map(|m| m.id);
         let meta = store.add_upload(&bytes, &req, &geo)?;
         let appended = existing.as_deref() == Some(meta.id.as_str());
@@ -262,7 +265,7 @@ pub async fn get(State(state): State<AppState>, Path(id): Path<String>) -> Resul
     responses(
         (status = 204, description = "Deleted"),
         (status = 401, description = "Admin token missing or wrong", body = ErrorBody),
-        (status = 403, description = "No admin token configured and the client is not on loopback", body = ErrorBody),
+        (status = 403, description = "Refused: without an admin token, a client not on loopback, a foreign Host or a foreign Origin; with one, a foreign Origin", body = ErrorBody),
         (status = 404, description = "Unknown layer", body = ErrorBody)))]
 pub async fn delete(
     _admin: Admin,

@@ -7,6 +7,7 @@ pub mod artmaps;
 pub mod auth;
 pub mod cache;
 pub mod config;
+pub mod connections;
 pub mod error;
 pub mod layers;
 pub mod metrics;
@@ -28,7 +29,7 @@ use axum::Router;
 use axum::extract::{DefaultBodyLimit, FromRef};
 use axum::handler::HandlerWithoutStateExt;
 use axum::http::{HeaderName, HeaderValue, Request, header};
-use axum::routing::{get, post};
+use axum::routing::{MethodRouter, get, post};
 use cache::RenderCache;
 use metrics::Metrics;
 use pool::RenderPool;
@@ -62,6 +63,9 @@ pub enum ServerError {
     /// The layer store in the data directory cannot be opened.
     #[error("cannot open the layer store: {0}")]
     Store(#[from] StoreError),
+    /// `--admin-token-file` is unreadable or empty.
+    #[error(transparent)]
+    TokenFile(#[from] config::TokenFileError),
     /// A `--cors-origins` entry is not a valid origin.
     #[error("invalid CORS origin {0:?}")]
     CorsOrigin(String),
@@ -102,6 +106,8 @@ struct Inner {
     started: Instant,
     ready: OnceLock<Ready>,
     shutdown: watch::Sender<bool>,
+    /// Permits for decoding uploads (`--upload-decodes`).
+    decodes: Arc<tokio::sync::Semaphore>,
 }
 
 /// State shared by every handler; cheap to clone.
@@ -110,7 +116,9 @@ pub struct AppState(Arc<Inner>);
 
 impl AppState {
     fn new(config: ServerConfig, store: Arc<Store>) -> AppState {
+        let decodes = Arc::new(tokio::sync::Semaphore::new(config.upload_decodes));
         AppState(Arc::new(Inner {
+            decodes,
             config,
             metrics: Metrics::new(),
             store,
@@ -150,6 +158,13 @@ impl AppState {
         Limits { max_width: self.0.config.max_width, max_height: self.0.config.max_height }
     }
 
+    /// Waits for one of the `--upload-decodes` permits: decoding an upload (a layer file, an
+    /// art-map PNG) holds one, so concurrent uploads cannot multiply the memory of a decode.
+    pub async fn decode_permit(&self) -> Result<tokio::sync::OwnedSemaphorePermit, ApiError> {
+        // Nothing closes the semaphore; a closed one would mean the server is going away.
+        self.0.decodes.clone().acquire_owned().await.map_err(|_| ApiError::ShuttingDown)
+    }
+
     /// A receiver that turns `true` when the server begins to shut down.
     pub fn shutdown_receiver(&self) -> watch::Receiver<bool> {
         self.0.shutdown.subscribe()
@@ -181,20 +196,17 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
     let mut router = Router::new()
         .route("/api/health", get(routes::health))
         .route("/api/scene", get(routes::scene))
-        .route("/api/render", get(routes::render_get).post(routes::render_post))
-        .route("/api/styles/resolve", post(routes::resolve_styles))
-        .route("/api/cache/clear", post(routes::cache_clear))
-        .route("/api/layers", get(layers::list).post(layers::upload).layer(DefaultBodyLimit::max(config.max_upload)))
+        .route("/api/render", limited(get(routes::render_get).post(routes::render_post), config.body_limit))
+        .route("/api/styles/resolve", limited(post(routes::resolve_styles), config.body_limit))
+        .route("/api/cache/clear", limited(post(routes::cache_clear), config.body_limit))
+        .route("/api/layers", limited(get(layers::list).post(layers::upload), config.max_upload))
         .route("/api/layers/{id}", get(layers::get).delete(layers::delete))
         .route("/api/layers/{id}/legend.png", get(layers::legend_png))
         .route("/api/layers/{id}/legend.json", get(layers::legend_json))
         .route("/api/artmaps", get(artmaps::list))
         .route(
             "/api/artmaps/{kind}/{index}",
-            get(artmaps::png)
-                .put(artmaps::put)
-                .delete(artmaps::delete)
-                .layer(DefaultBodyLimit::max(artmaps::MAX_ART_MAP_BYTES)),
+            limited(get(artmaps::png).put(artmaps::put).delete(artmaps::delete), artmaps::MAX_ART_MAP_BYTES),
         )
         .route("/api/ws", get(ws::upgrade))
         .route("/api/openapi.json", get(openapi::openapi_json))
@@ -203,6 +215,7 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         .fallback_service(ServeDir::new(&config.web_dir).not_found_service(routes::not_found.into_service()))
         .method_not_allowed_fallback(routes::method_not_allowed)
         .layer(DefaultBodyLimit::max(config.body_limit))
+        .layer(axum::middleware::from_fn_with_state(config.body_timeout(), connections::body_deadline))
         .layer(axum::middleware::from_fn_with_state(state.metrics().clone(), metrics::track_requests))
         .layer(trace)
         .layer(PropagateRequestIdLayer::new(request_id.clone()))
@@ -211,6 +224,14 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         router = router.layer(cors(&config.cors_origins)?);
     }
     Ok(router.with_state(state))
+}
+
+/// A route taking bodies of at most `limit` bytes: the extractors' limit, and a
+/// `Content-Length` above it refused up front.
+fn limited(route: MethodRouter<AppState>, limit: usize) -> MethodRouter<AppState> {
+    route
+        .layer(DefaultBodyLimit::max(limit))
+        .layer(axum::middleware::from_fn_with_state(limit, connections::refuse_oversized))
 }
 
 fn cors(origins: &[String]) -> Result<CorsLayer, ServerError> {
@@ -254,9 +275,10 @@ pub struct Server {
 }
 
 impl Server {
-    /// Creates the data directory, opens the layer store in it and binds the listen address
-    /// (port 0 picks a free port).
-    pub async fn bind(config: ServerConfig) -> Result<Server, ServerError> {
+    /// Reads the admin token file (if any), creates the data directory, opens the layer store
+    /// in it and binds the listen address (port 0 picks a free port).
+    pub async fn bind(mut config: ServerConfig) -> Result<Server, ServerError> {
+        config.resolve_admin_token()?;
         std::fs::create_dir_all(&config.data_dir)
             .map_err(|source| ServerError::DataDir { path: config.data_dir.clone(), source })?;
         let dir = config.data_dir.clone();
@@ -302,7 +324,7 @@ impl Server {
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> Result<(), ServerError> {
         let Server { listener, state } = self;
-        let app = router(state.clone())?.into_make_service_with_connect_info::<SocketAddr>();
+        let app = router(state.clone())?;
         let signal = {
             let state = state.clone();
             let mut stopping = state.shutdown_receiver();
@@ -315,7 +337,9 @@ impl Server {
             }
         };
         info!(addr = %listener.local_addr()?, "listening");
-        let server = tokio::spawn(axum::serve(listener, app).with_graceful_shutdown(signal).into_future());
+        tokio::spawn(signal);
+        let header_timeout = state.config().header_timeout();
+        let server = tokio::spawn(connections::serve(listener, app, header_timeout, state.shutdown_receiver()));
         let loaded = load(state.clone(), loaded).await;
         if loaded.is_err() {
             state.begin_shutdown();

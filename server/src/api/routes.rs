@@ -265,7 +265,7 @@ fn parse_body<T: DeserializeOwned>(body: Result<Bytes, BytesRejection>) -> Resul
         StatusCode::PAYLOAD_TOO_LARGE => {
             ApiError::too_large("body", "the request body is larger than this server allows")
         }
-        _ => ApiError::bad("body", e.body_text()),
+        _ => super::connections::body_error(&e, || ApiError::bad("body", e.body_text())),
     })?;
     let mut deserializer = serde_json::Deserializer::from_slice(&body);
     let params: T = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
@@ -372,7 +372,7 @@ pub fn pool_error(error: PoolError) -> ApiError {
     responses(
         (status = 200, description = "Cache cleared", body = CacheCleared),
         (status = 401, description = "Admin token missing or wrong", body = ErrorBody),
-        (status = 403, description = "No admin token configured and the client is not on loopback", body = ErrorBody),
+        (status = 403, description = "Refused: without an admin token, a client not on loopback, a foreign Host or a foreign Origin; with one, a foreign Origin", body = ErrorBody),
         (status = 503, description = "The scene is still loading", body = ErrorBody)))]
 pub async fn cache_clear(_admin: Admin, State(state): State<AppState>) -> Result<Json<CacheCleared>, ApiError> {
     let ready = state.ready().ok_or(ApiError::NotReady)?;

@@ -7,6 +7,7 @@
 //! (`--interactive-scale`, `--interactive-quality`, at most `--max-fps`); after
 //! `--still-delay-ms` of rest the session gets a full-size still in its own format.
 
+use super::connections::stopped;
 use super::error::{ApiError, ErrorDetail};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
@@ -41,6 +42,11 @@ pub const MAGIC: [u8; 2] = *b"LS";
 pub const PROTOCOL_VERSION: u8 = 1;
 /// Longest a server waits for sessions to close at shutdown.
 pub const CLOSE_GRACE: Duration = Duration::from_secs(5);
+/// Longest a session waits for a client to take its close frame.
+const CLOSE_SEND_TIMEOUT: Duration = Duration::from_secs(1);
+/// How long a session closed for an oversized message (code 1009) keeps the connection, so
+/// that the close frame reaches the client before the unread rest resets the connection.
+const CLOSE_LINGER: Duration = Duration::from_millis(250);
 
 /// A relative camera move: translation along the heading, then rotation.
 #[derive(Debug, Clone, Copy, Default, Deserialize, ToSchema)]
@@ -410,9 +416,10 @@ impl<'a> Session<'a> {
         }
     }
 
-    async fn run(mut self, mut socket: WebSocket) {
+    async fn run(mut self, socket: WebSocket) {
         let config = self.state.config();
         let mut shutdown = self.state.shutdown_receiver();
+        let mut socket = Link { socket, send_timeout: config.ws_send_timeout(), shutdown: shutdown.clone() };
         let mut art_maps = self.ready.art.subscribe();
         let hello = ServerMessage::Hello {
             session: self.id,
@@ -425,15 +432,15 @@ impl<'a> Session<'a> {
             still_delay_ms: config.still_delay_ms,
             idle_timeout_s: config.idle_timeout_s,
         };
-        if send_json(&mut socket, &hello).await.is_err() {
-            return;
+        if let Err(failed) = socket.send_json(&hello).await {
+            return self.ended(failed);
         }
         self.schedule(Instant::now());
         loop {
             let idle_at = self.last_message + config.idle_timeout();
             let wake_at = self.wake_at;
             let event = tokio::select! {
-                message = socket.recv() => Event::Message(message),
+                message = socket.socket.recv() => Event::Message(message),
                 frame = frame_done(&mut self.in_flight) => Event::Frame(frame),
                 Ok(()) = art_maps.changed() => Event::ArtMaps,
                 () = sleep_until(wake_at) => Event::Wake,
@@ -454,10 +461,19 @@ impl<'a> Session<'a> {
                         Message::Ping(_) | Message::Pong(_) => None,
                     }
                 }
-                Event::Message(None | Some(Err(_))) => return,
+                Event::Message(Some(Err(error))) => {
+                    if is_too_long(error) {
+                        socket.close(close_code::SIZE, "message too big").await;
+                        // The rest of the message is unread: closing now would reset the
+                        // connection and could discard the close frame before the client reads it.
+                        tokio::time::sleep(CLOSE_LINGER).await;
+                    }
+                    return;
+                }
+                Event::Message(None) => return,
                 Event::Frame(result) => {
-                    if self.deliver(&mut socket, result).await.is_err() {
-                        return;
+                    if let Err(failed) = self.deliver(&mut socket, result).await {
+                        return self.ended(failed);
                     }
                     None
                 }
@@ -469,20 +485,32 @@ impl<'a> Session<'a> {
                 }
                 Event::Wake => None,
                 Event::Idle => {
-                    close(&mut socket, close_code::AWAY, "idle timeout").await;
+                    socket.close(close_code::AWAY, "idle timeout").await;
                     return;
                 }
                 Event::Shutdown => {
-                    close(&mut socket, close_code::AWAY, "server shutting down").await;
+                    socket.close(close_code::AWAY, "server shutting down").await;
                     return;
                 }
             };
             if let Some(message) = outgoing
-                && send_json(&mut socket, &message).await.is_err()
+                && let Err(failed) = socket.send_json(&message).await
             {
-                return;
+                return self.ended(failed);
             }
             self.schedule(now);
+        }
+    }
+
+    /// Logs why a send ended the session (a client that does not read is worth a warning).
+    fn ended(&self, failed: SendFailed) {
+        match failed {
+            SendFailed::Deadline => {
+                tracing::warn!(session = self.id, "client took no message within --ws-send-timeout-s; closed");
+            }
+            SendFailed::Closed | SendFailed::ShuttingDown => {
+                tracing::debug!(session = self.id, ?failed, "session ended while sending");
+            }
         }
     }
 
@@ -676,7 +704,7 @@ impl<'a> Session<'a> {
     }
 
     /// Sends a finished frame (a `frame` message, then the binary frame) or its error.
-    async fn deliver(&mut self, socket: &mut WebSocket, result: Result<Frame, PoolError>) -> Result<(), axum::Error> {
+    async fn deliver(&mut self, socket: &mut Link, result: Result<Frame, PoolError>) -> Result<(), SendFailed> {
         let Some(done) = self.in_flight.take() else { return Ok(()) };
         let frame = match result {
             Ok(frame) => frame,
@@ -684,7 +712,7 @@ impl<'a> Session<'a> {
             Err(error) => {
                 // Do not retry the same view in a loop: it counts as delivered.
                 self.delivered = Some(done.view);
-                return send_json(socket, &ServerMessage::Error(pool_error(error).detail())).await;
+                return socket.send_json(&ServerMessage::Error(pool_error(error).detail())).await;
             }
         };
         self.frame_id += 1;
@@ -713,7 +741,7 @@ impl<'a> Session<'a> {
         let mut binary = Vec::with_capacity(HEADER_LEN + frame.bytes.len());
         binary.extend_from_slice(&header.encode());
         binary.extend_from_slice(&frame.bytes);
-        send_json(socket, &status).await?;
+        socket.send_json(&status).await?;
         socket.send(Message::Binary(Bytes::from(binary))).await?;
         self.state.metrics().frames_sent.get_or_create(&done.kind.label()).inc();
         // A frame queued before an art-map change may show the old maps: it is shown again.
@@ -736,14 +764,55 @@ async fn sleep_until(deadline: Option<Instant>) {
     }
 }
 
-async fn send_json(socket: &mut WebSocket, message: &ServerMessage) -> Result<(), axum::Error> {
-    let text = serde_json::to_string(message).map_err(axum::Error::new)?;
-    socket.send(Message::text(text)).await
+/// Whether a receive error is a message or frame longer than `--ws-max-message`.
+fn is_too_long(error: axum::Error) -> bool {
+    matches!(error.into_inner().downcast::<tungstenite::Error>().map(|e| *e), Ok(tungstenite::Error::Capacity(_)))
 }
 
-async fn close(socket: &mut WebSocket, code: u16, reason: &'static str) {
-    // The client may be gone already; the session ends either way.
-    let _ = socket.send(Message::Close(Some(CloseFrame { code, reason: reason.into() }))).await;
+/// Why a message was not sent; the session ends either way.
+#[derive(Debug)]
+enum SendFailed {
+    /// The connection failed or was closed.
+    Closed,
+    /// The client did not take the message within `--ws-send-timeout-s`: it does not read.
+    Deadline,
+    /// The server is shutting down; the message was abandoned.
+    ShuttingDown,
+}
+
+/// A session's connection: every send has a deadline and gives way to shutdown, so a client
+/// that never reads cannot hold its session (and its `--max-sessions` slot) or delay the
+/// shutdown. The outgoing queue is one message: the session sends one at a time, and the
+/// renderer makes no frame while the last one is unsent (latest wins).
+struct Link {
+    socket: WebSocket,
+    send_timeout: Duration,
+    shutdown: tokio::sync::watch::Receiver<bool>,
+}
+
+impl Link {
+    async fn send(&mut self, message: Message) -> Result<(), SendFailed> {
+        tokio::select! {
+            sent = tokio::time::timeout(self.send_timeout, self.socket.send(message)) => match sent {
+                Ok(Ok(())) => Ok(()),
+                Ok(Err(_)) => Err(SendFailed::Closed),
+                Err(_) => Err(SendFailed::Deadline),
+            },
+            () = stopped(&mut self.shutdown) => Err(SendFailed::ShuttingDown),
+        }
+    }
+
+    async fn send_json(&mut self, message: &ServerMessage) -> Result<(), SendFailed> {
+        let text = serde_json::to_string(message).map_err(|_| SendFailed::Closed)?;
+        self.send(Message::text(text)).await
+    }
+
+    /// Sends a close frame, waiting at most [`CLOSE_SEND_TIMEOUT`] (also at shutdown).
+    async fn close(&mut self, code: u16, reason: &'static str) {
+        let frame = Message::Close(Some(CloseFrame { code, reason: reason.into() }));
+        // The client may be gone already or not read; the session ends either way.
+        let _ = tokio::time::timeout(CLOSE_SEND_TIMEOUT, self.socket.send(frame)).await;
+    }
 }
 
 #[cfg(test)]

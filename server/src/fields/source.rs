@@ -239,20 +239,24 @@ fn rename_error(e: gis::GisError, scratch: &Path, name: &str) -> FieldError {
 }
 
 /// Checks the grid size a GeoTIFF or ASCII grid announces in its header against `max_cells`
-/// before anything is decoded. An ASCII grid's header is parsed by the reader's own header
+/// before anything is decoded, and what a GeoTIFF's chunks decode to against 8 bytes a cell
+/// of it. An ASCII grid's header is parsed by the reader's own header
 /// parser, so what is checked is what would be allocated.
 fn check_raster_header(bytes: &[u8], format: FieldFormat, name: &str, max_cells: u64) -> Result<(), FieldError> {
-    let (w, h) = match format {
+    let (w, h, decoded) = match format {
         FieldFormat::GeoTiff => {
             let mut decoder = tiff::decoder::Decoder::new(Cursor::new(bytes)).map_err(|e| FieldError::Format {
                 context: name.to_string(),
                 message: format!("cannot decode TIFF: {e}"),
             })?;
-            let (w, h) = decoder.dimensions().map_err(|e| FieldError::Format {
+            let tiff_error = |e: tiff::TiffError| FieldError::Format {
                 context: name.to_string(),
                 message: format!("cannot decode TIFF: {e}"),
-            })?;
-            (u64::from(w), u64::from(h))
+            };
+            let (w, h) = decoder.dimensions().map_err(tiff_error)?;
+            // Strips or tiles × samples × bytes, before any decompression (D4).
+            let decoded = gis::geotiff::decoded_bytes(&mut decoder).map_err(tiff_error)?;
+            (u64::from(w), u64::from(h), Some(decoded))
         }
         FieldFormat::AsciiGrid => {
             // The header as the reader reads it (byte-order marks, any number of blank lines);
@@ -263,7 +267,8 @@ fn check_raster_header(bytes: &[u8], format: FieldFormat, name: &str, max_cells:
                     message: "not an ASCII grid (the file is not text)".into(),
                 });
             };
-            gis::ascii_grid::ascii_grid_size(Path::new(name), text)?
+            let (w, h) = gis::ascii_grid::ascii_grid_size(Path::new(name), text)?;
+            (w, h, None)
         }
         FieldFormat::NetCdf => return Ok(()),
     };
@@ -273,6 +278,16 @@ fn check_raster_header(bytes: &[u8], format: FieldFormat, name: &str, max_cells:
             what: format!("{name}: raster of {w} × {h} cells"),
             size: cells,
             limit: max_cells,
+        });
+    }
+    let budget = gis::geotiff::decoding_budget(max_cells);
+    if let Some(decoded) = decoded.filter(|d| *d > budget) {
+        return Err(FieldError::TooLarge {
+            what: format!(
+                "{name}: decoded TIFF data in bytes (strips or tiles × samples per pixel × bytes per sample)"
+            ),
+            size: decoded,
+            limit: budget,
         });
     }
     Ok(())

@@ -319,6 +319,33 @@ fn result_len(result: &DecodingResult) -> usize {
     }
 }
 
+/// Bytes that decoding the image of `decoder` decompresses, computed from its tags before
+/// anything is decoded: whole chunks across (strips, or tiles with their right-hand padding,
+/// which the decoder decompresses and discards) × the rows × samples per pixel × bytes per
+/// sample. A tiny compressed file can announce gigabytes this way (a decompression bomb:
+/// 4096 × 4096 cells of 29 four-byte samples, or tiles 65536 wide); callers compare this
+/// against their budget first.
+pub fn decoded_bytes<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>) -> tiff::TiffResult<u64> {
+    let (width, height) = decoder.dimensions()?;
+    let first = |values: Option<Vec<u16>>| values.and_then(|v| v.first().copied());
+    let samples = first(decoder.find_tag_unsigned_vec::<u16>(Tag::SamplesPerPixel)?).unwrap_or(1);
+    let bits = decoder.find_tag_unsigned_vec::<u16>(Tag::BitsPerSample)?;
+    let bits = bits.and_then(|b| b.into_iter().max()).unwrap_or(1);
+    let (chunk_width, _) = decoder.chunk_dimensions();
+    let chunks_across = u64::from(width).div_ceil(u64::from(chunk_width.max(1)));
+    let padded_width = chunks_across.saturating_mul(u64::from(chunk_width));
+    Ok(padded_width
+        .saturating_mul(u64::from(height))
+        .saturating_mul(u64::from(samples.max(1)))
+        .saturating_mul(u64::from(bits.div_ceil(8).max(1))))
+}
+
+/// Decoding budget of a raster of at most `max_cells` cells: 8 bytes per cell (one f64 band
+/// or four u16 bands), so that a raster at the cell limit still decodes.
+pub fn decoding_budget(max_cells: u64) -> u64 {
+    max_cells.saturating_mul(8)
+}
+
 /// Reads band 1 of a GeoTIFF with its georeferencing, CRS, nodata and palette.
 pub fn read_geotiff(path: &Path) -> Result<Raster, GisError> {
     let bytes = std::fs::read(path).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
@@ -394,11 +421,19 @@ pub fn read_geotiff(path: &Path) -> Result<Raster, GisError> {
         None
     };
 
+    // Cell counts are capped by MAX_CELLS; the decoded bytes (padding and further samples
+    // included) by the same budget, checked before decoding.
+    let budget = decoding_budget(raster::MAX_CELLS);
+    let decoded = decoded_bytes(&mut decoder).map_err(tiff_err)?;
+    if decoded > budget {
+        return Err(GisError::Tiff {
+            path: path.to_path_buf(),
+            message: format!("decoding would produce {decoded} bytes, more than the limit of {budget}"),
+        });
+    }
     let limits = {
         let mut l = Limits::default();
-        // Cell counts are capped by MAX_CELLS; allow 8 bytes per cell (e.g. one f64 band or
-        // four u16 bands) so that a raster at the cap still decodes.
-        l.decoding_buffer_size = usize::try_from(raster::MAX_CELLS * 8).unwrap_or(usize::MAX);
+        l.decoding_buffer_size = usize::try_from(budget).unwrap_or(usize::MAX);
         l
     };
     let white_is_zero = PhotometricInterpretation::WhiteIsZero.to_u16();

@@ -322,8 +322,8 @@ impl Tam {
     /// [`Tam::from_png`] from PNG bytes in memory (an upload); `name` stands for the file in
     /// errors.
     pub fn from_png_bytes(bytes: &[u8], levels: usize, name: &Path) -> Result<Tam, ArtMapError> {
-        let strip = decode_png(bytes, name)?.to_luma8();
-        let (width, height) = strip.dimensions();
+        // The shape is checked on the header, before the strip is decoded.
+        let (width, height) = png_dimensions(bytes, name)?;
         let shape_ok = levels >= 1
             && height.is_power_of_two()
             && height >= MIN_TAM_SIZE
@@ -338,6 +338,7 @@ impl Tam {
                 ),
             });
         }
+        let strip = decode_png(bytes, name)?.to_luma8();
         let levels = (0..levels as u32)
             .map(|level| {
                 let mut chain = vec![image::imageops::crop_imm(&strip, level * height, 0, height, height).to_image()];
@@ -388,8 +389,7 @@ impl Sam {
     /// [`Sam::from_png`] from PNG bytes in memory (an upload); `name` stands for the file in
     /// errors. The image must be at least [`MIN_SAM_SIZE`] pixels on each side.
     pub fn from_png_bytes(bytes: &[u8], name: &Path) -> Result<Sam, ArtMapError> {
-        let image = decode_png(bytes, name)?.to_rgba8();
-        let (width, height) = image.dimensions();
+        let (width, height) = png_dimensions(bytes, name)?;
         if width < MIN_SAM_SIZE || height < MIN_SAM_SIZE {
             return Err(ArtMapError::Shape {
                 path: name.to_path_buf(),
@@ -398,7 +398,7 @@ impl Sam {
                 expected: format!("at least {MIN_SAM_SIZE}×{MIN_SAM_SIZE} (u along the contour × support)"),
             });
         }
-        Ok(Sam { image })
+        Ok(Sam { image: decode_png(bytes, name)?.to_rgba8() })
     }
 }
 
@@ -553,9 +553,9 @@ fn read_file(path: &Path) -> Result<Vec<u8>, ArtMapError> {
     std::fs::read(path).map_err(|source| ArtMapError::Io { path: path.to_path_buf(), source })
 }
 
-/// Decodes PNG bytes, checking the signature first and the size in the header before any
-/// pixel is allocated (at most [`MAX_ART_MAP_SIDE`] per side); `path` names the file in errors.
-fn decode_png(bytes: &[u8], path: &Path) -> Result<image::DynamicImage, ArtMapError> {
+/// A PNG reader for `bytes` after checking the signature, limited to [`MAX_ART_MAP_SIDE`]
+/// per side; `path` names the file in errors.
+fn png_reader<'a>(bytes: &'a [u8], path: &Path) -> Result<image::ImageReader<std::io::Cursor<&'a [u8]>>, ArtMapError> {
     const SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
     if !bytes.starts_with(SIGNATURE) {
         return Err(ArtMapError::NotPng { path: path.to_path_buf() });
@@ -565,7 +565,21 @@ fn decode_png(bytes: &[u8], path: &Path) -> Result<image::DynamicImage, ArtMapEr
     limits.max_image_height = Some(MAX_ART_MAP_SIDE);
     let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
     reader.limits(limits);
-    reader.decode().map_err(|source| ArtMapError::Decode { path: path.to_path_buf(), source })
+    Ok(reader)
+}
+
+/// The width and height a PNG's header announces, read before any pixel is decoded, so that
+/// a shape that cannot fit is refused without allocating the image.
+fn png_dimensions(bytes: &[u8], path: &Path) -> Result<(u32, u32), ArtMapError> {
+    png_reader(bytes, path)?
+        .into_dimensions()
+        .map_err(|source| ArtMapError::Decode { path: path.to_path_buf(), source })
+}
+
+/// Decodes PNG bytes, checking the signature first and the size in the header before any
+/// pixel is allocated (at most [`MAX_ART_MAP_SIDE`] per side); `path` names the file in errors.
+fn decode_png(bytes: &[u8], path: &Path) -> Result<image::DynamicImage, ArtMapError> {
+    png_reader(bytes, path)?.decode().map_err(|source| ArtMapError::Decode { path: path.to_path_buf(), source })
 }
 
 /// A stroke: a polyline with a radius per point, in texture units (TAM) or pixels (SAM).

@@ -48,8 +48,8 @@ use tracing::warn;
 
 use crate::echo::echo;
 use crate::fields::{
-    ClassInfo, ColorMapSpec, Field, FieldError, FieldKind, FieldStep, Legend, LoadOptions, Lut, SceneGeo, format_time,
-    load_bytes, parse_time,
+    ClassInfo, ColorMapSpec, Field, FieldError, FieldKind, FieldStep, Legend, LoadOptions, Lut, MAX_LABEL_CLASSES,
+    SceneGeo, format_time, load_bytes, parse_time,
 };
 use crate::gis::{CrsDefinition, GeoTransform, Raster};
 
@@ -249,6 +249,8 @@ pub struct Store {
     root: PathBuf,
     limits: StoreLimits,
     index: Mutex<BTreeMap<String, LayerMeta>>,
+    /// Held by one writer at a time ([`Store::writing`]).
+    writes: Mutex<()>,
 }
 
 impl Store {
@@ -260,7 +262,8 @@ impl Store {
 
     /// [`Store::open`] with explicit limits.
     pub fn open_with_limits(dir: &Path, limits: StoreLimits) -> Result<Store, StoreError> {
-        let store = Store { root: dir.to_path_buf(), limits, index: Mutex::new(BTreeMap::new()) };
+        let store =
+            Store { root: dir.to_path_buf(), limits, index: Mutex::new(BTreeMap::new()), writes: Mutex::new(()) };
         for d in [store.root.clone(), store.layers_dir(), store.tmp_dir()] {
             fs::create_dir_all(&d).map_err(io_err(&d))?;
         }
@@ -358,24 +361,38 @@ impl Store {
     }
 
     /// Stores an already decoded field under `name` (see [`Store::add_upload`] for the rules;
-    /// `source` is recorded in the metadata).
+    /// `source` is recorded in the metadata). Writers are serialised; the index is locked only
+    /// to look up and to publish, never across disk writes, so reads go on meanwhile.
     pub fn add_field(&self, name: &str, field: Field, source: &str, scene: &SceneGeo) -> Result<LayerMeta, StoreError> {
         let name = check_name(name)?;
+        check_representable(&field, source)?;
         field.check_overlap(scene)?;
         let scene_extent = field.scene_extent(scene)?;
-        let mut index = self.lock();
-        if let Some(existing) = index.values().find(|m| m.name == name).cloned() {
+        if !scene_extent.is_some_and(|e| e.iter().all(|v| fits_f32(*v))) {
+            return Err(StoreError::Invalid(format!(
+                "{}: the layer's extent cannot be placed in the scene (it is not finite in scene metres)",
+                echo(source)
+            )));
+        }
+        let _writing = self.writing();
+        let existing = self.lock().values().find(|m| m.name == name).cloned();
+        if let Some(existing) = existing {
             let meta = self.append_steps(&existing, field, scene_extent)?;
-            index.insert(meta.id.clone(), meta.clone());
+            self.lock().insert(meta.id.clone(), meta.clone());
             return Ok(meta);
         }
-        if index.len() >= self.limits.max_layers {
-            return Err(StoreError::TooLarge {
-                what: "store".into(),
-                size: index.len() as u64 + 1,
-                limit: self.limits.max_layers as u64,
-            });
-        }
+        let id = {
+            let index = self.lock();
+            if index.len() >= self.limits.max_layers {
+                return Err(StoreError::TooLarge {
+                    what: "store".into(),
+                    size: index.len() as u64 + 1,
+                    limit: self.limits.max_layers as u64,
+                });
+            }
+            // A directory left by a damaged layer (skipped at start-up) keeps its id taken.
+            unique_id(&name, |id| index.contains_key(id) || self.layers_dir().join(id).exists())
+        };
         if field.steps().len() > self.limits.max_steps {
             return Err(StoreError::TooLarge {
                 what: "series".into(),
@@ -383,12 +400,13 @@ impl Store {
                 limit: self.limits.max_steps as u64,
             });
         }
-        let id = unique_id(&name, &index);
         let stage = self.tmp_dir().join(format!("new-{id}-{}", nonce()));
         fs::create_dir(&stage).map_err(io_err(&stage))?;
         let result = (|| -> Result<LayerMeta, StoreError> {
             let steps =
                 field.steps().iter().map(|s| self.write_step(&stage, s)).collect::<Result<Vec<_>, StoreError>>()?;
+            let e = field.extent();
+            let (min, max) = field.value_range();
             let meta = LayerMeta {
                 format: STORE_FORMAT,
                 id: id.clone(),
@@ -396,17 +414,16 @@ impl Store {
                 kind: field.kind(),
                 crs: field.crs().label(),
                 crs_definition: field.crs().proj_string().to_string(),
-                extent: [0.0; 4],
+                extent: [e.min_x, e.min_y, e.max_x, e.max_y],
                 scene_extent,
-                min: 0.0,
-                max: 0.0,
-                classes: Vec::new(),
-                steps: Vec::new(),
-                units: None,
+                min,
+                max,
+                classes: field.classes().to_vec(),
+                steps,
+                units: field.units().map(str::to_string),
                 source: source.to_string(),
                 created: format_time(&chrono::DateTime::<chrono::Utc>::from(std::time::SystemTime::now())),
             };
-            let meta = with_field_stats(meta, &field, steps);
             self.write_file_atomic(&stage.join("meta.json"), &meta_json(&meta)?)?;
             sync_dir(&stage)?;
             let target = self.layers_dir().join(&id);
@@ -418,19 +435,22 @@ impl Store {
             let _ = fs::remove_dir_all(&stage);
         }
         let meta = result?;
-        index.insert(id, meta.clone());
+        self.lock().insert(id, meta.clone());
         Ok(meta)
     }
 
-    /// Deletes a layer and returns its metadata.
+    /// Deletes a layer and returns its metadata. It leaves the index first (so no render
+    /// starts on it), then its directory goes.
     pub fn delete(&self, id: &str) -> Result<LayerMeta, StoreError> {
-        let mut index = self.lock();
-        let meta = index.get(id).cloned().ok_or_else(|| StoreError::NotFound { id: id.to_string() })?;
+        let _writing = self.writing();
+        let meta = self.lock().remove(id).ok_or_else(|| StoreError::NotFound { id: id.to_string() })?;
         let dir = self.layers_dir().join(&meta.id);
         let grave = self.tmp_dir().join(format!("deleted-{}-{}", meta.id, nonce()));
-        fs::rename(&dir, &grave).map_err(io_err(&dir))?;
-        sync_dir(&self.layers_dir())?;
-        index.remove(id);
+        let moved = fs::rename(&dir, &grave).map_err(io_err(&dir)).and_then(|()| sync_dir(&self.layers_dir()));
+        if let Err(e) = moved {
+            self.lock().insert(meta.id.clone(), meta);
+            return Err(e);
+        }
         if let Err(e) = fs::remove_dir_all(&grave) {
             warn!(path = %grave.display(), error = %e, "could not remove a deleted layer; it goes at the next start");
         }
@@ -453,6 +473,12 @@ impl Store {
         Ok(Legend::new(&meta.name, meta.kind, meta.units.as_deref(), &meta.classes, &lut))
     }
 
+    /// Serialises writers (uploads, appends, deletes); held across their disk writes, which
+    /// run off the async threads. Readers never take it.
+    fn writing(&self) -> std::sync::MutexGuard<'_, ()> {
+        self.writes.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
     fn lock(&self) -> std::sync::MutexGuard<'_, BTreeMap<String, LayerMeta>> {
         // A panic while holding the lock cannot leave the map half-updated (inserts and
         // removes are single calls), so a poisoned lock is still usable.
@@ -467,7 +493,8 @@ impl Store {
         self.root.join("tmp")
     }
 
-    /// Adds the steps of `field` to the stored series `existing`.
+    /// Adds the steps of `field` to the stored series `existing`, checked against its
+    /// metadata (kind, CRS, times, classes): the stored steps are not read.
     fn append_steps(
         &self,
         existing: &LayerMeta,
@@ -485,29 +512,44 @@ impl Store {
                 limit: self.limits.max_steps as u64,
             });
         }
-        let old = self.read_field(existing)?;
-        let new_steps: Vec<FieldStep> = field.steps().to_vec();
-        let merged = old.append(field).map_err(|e| conflict(&e.to_string()))?;
+        if field.kind() != existing.kind {
+            return Err(conflict(&format!("cannot add a {} grid to a {} series", field.kind(), existing.kind)));
+        }
+        if field.crs().proj_string() != existing.crs_definition {
+            return Err(conflict(&format!(
+                "every step of a series must be in the same CRS ({} vs {})",
+                field.crs().label(),
+                existing.crs
+            )));
+        }
+        let stored: HashSet<&str> = existing.times().into_iter().collect();
+        if let Some(t) = field.times().iter().map(format_time).find(|t| stored.contains(t.as_str())) {
+            return Err(conflict(&format!("time step {t} appears twice")));
+        }
+        let classes = merge_classes(&existing.classes, field.classes()).map_err(|e| conflict(&e))?;
         let dir = self.layers_dir().join(&existing.id);
         let mut written = Vec::new();
         let result = (|| -> Result<LayerMeta, StoreError> {
-            let mut by_time: BTreeMap<String, StepMeta> =
-                existing.steps.iter().filter_map(|s| Some((s.time.clone()?, s.clone()))).collect();
-            for step in &new_steps {
+            let mut steps = existing.steps.clone();
+            for step in field.steps() {
                 let staged = self.write_step(&self.tmp_dir(), step)?;
                 let target = dir.join(&staged.file);
                 fs::rename(self.tmp_dir().join(&staged.file), &target).map_err(io_err(&target))?;
                 written.push(target);
-                by_time.insert(staged.time.clone().unwrap_or_default(), staged);
+                steps.push(staged);
             }
             sync_dir(&dir)?;
-            let steps = merged
-                .steps()
-                .iter()
-                .filter_map(|s| s.time.map(|t| format_time(&t)))
-                .filter_map(|t| by_time.remove(&t))
-                .collect();
-            let mut meta = with_field_stats(existing.clone(), &merged, steps);
+            // Times are ISO 8601 in one format (`format_time`): their text sorts by time.
+            steps.sort_by(|a, b| a.time.cmp(&b.time));
+            let e = field.extent();
+            let (min, max) = field.value_range();
+            let mut meta = existing.clone();
+            meta.extent = union(existing.extent, [e.min_x, e.min_y, e.max_x, e.max_y]);
+            meta.min = existing.min.min(min);
+            meta.max = existing.max.max(max);
+            meta.classes = classes;
+            meta.units = existing.units.clone().or_else(|| field.units().map(str::to_string));
+            meta.steps = steps;
             meta.scene_extent = union_box(existing.scene_extent, scene_extent);
             self.write_file_atomic(&dir.join("meta.json"), &meta_json(&meta)?)?;
             Ok(meta)
@@ -642,20 +684,24 @@ impl Store {
     }
 }
 
-/// Fills a meta's statistics (CRS, extent, range, classes, units) from a field and its steps.
-fn with_field_stats(mut meta: LayerMeta, field: &Field, steps: Vec<StepMeta>) -> LayerMeta {
-    let e = field.extent();
-    let (min, max) = field.value_range();
-    meta.kind = field.kind();
-    meta.crs = field.crs().label();
-    meta.crs_definition = field.crs().proj_string().to_string();
-    meta.extent = [e.min_x, e.min_y, e.max_x, e.max_y];
-    meta.min = min;
-    meta.max = max;
-    meta.classes = field.classes().to_vec();
-    meta.units = field.units().map(str::to_string);
-    meta.steps = steps;
-    meta
+/// The classes of a stored label series and of the steps added to it: counts summed, the
+/// stored names and colours kept (new classes take the new steps' colours); more than
+/// [`MAX_LABEL_CLASSES`] is an error.
+fn merge_classes(stored: &[ClassInfo], added: &[ClassInfo]) -> Result<Vec<ClassInfo>, String> {
+    let mut merged: BTreeMap<i64, ClassInfo> = stored.iter().map(|c| (c.value, c.clone())).collect();
+    for class in added {
+        merged
+            .entry(class.value)
+            .and_modify(|c| c.count += class.count)
+            .or_insert_with(|| ClassInfo { name: None, ..class.clone() });
+    }
+    if merged.len() > MAX_LABEL_CLASSES {
+        return Err(format!(
+            "a label field may have at most {MAX_LABEL_CLASSES} classes ({} with these steps)",
+            merged.len()
+        ));
+    }
+    Ok(merged.into_values().collect())
 }
 
 /// A 256-entry palette from class colours (values 0…255), so label colours survive a reload.
@@ -674,10 +720,15 @@ fn class_palette(classes: &[ClassInfo]) -> Option<Vec<[u8; 3]>> {
     Some(palette)
 }
 
+/// The union of two boxes `[min_x, min_y, max_x, max_y]`.
+fn union(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+    [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]
+}
+
 /// The union of two optional boxes.
 fn union_box(a: Option<[f64; 4]>, b: Option<[f64; 4]>) -> Option<[f64; 4]> {
     match (a, b) {
-        (Some(a), Some(b)) => Some([a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]),
+        (Some(a), Some(b)) => Some(union(a, b)),
         (a, b) => a.or(b),
     }
 }
@@ -740,7 +791,40 @@ fn parse_class_names(text: &str) -> Result<BTreeMap<i64, String>, StoreError> {
 }
 
 /// An id for `name` not yet in `index`: a slug of the name plus 8 hex digits of its hash.
-fn unique_id(name: &str, index: &BTreeMap<String, LayerMeta>) -> String {
+/// Whether `v` is finite and within the range of `f32`, the precision of the step files and
+/// of the renderer's textures and coordinates.
+fn fits_f32(v: f64) -> bool {
+    v.abs() <= f64::from(f32::MAX)
+}
+
+/// Refuses a field the store could write but not render or read back: valid values beyond
+/// the `f32` range (they would become infinities in the step files) and an extent beyond it
+/// (an absurd cell size such as 1e306).
+fn check_representable(field: &Field, source: &str) -> Result<(), StoreError> {
+    let source = echo(source);
+    for step in field.steps() {
+        if let Some((min, max)) = step.raster.valid_range()
+            && let Some(v) = [min, max].into_iter().find(|v| !fits_f32(*v))
+        {
+            return Err(StoreError::Invalid(format!(
+                "{source}: the value {v:e} is beyond the range of 32-bit floats (±{:e}) that layers are stored in",
+                f32::MAX
+            )));
+        }
+    }
+    let e = field.extent();
+    if ![e.min_x, e.min_y, e.max_x, e.max_y].into_iter().all(fits_f32) {
+        return Err(StoreError::Invalid(format!(
+            "{source}: the extent x {:e}…{:e}, y {:e}…{:e} (cell size × cells) is beyond the range of 32-bit floats",
+            e.min_x, e.max_x, e.min_y, e.max_y
+        )));
+    }
+    Ok(())
+}
+
+/// The id of a new layer named `name`: its slug and hash, with a counter appended while
+/// `taken` says the id is in use.
+fn unique_id(name: &str, taken: impl Fn(&str) -> bool) -> String {
     let mut slug = String::new();
     for c in name.chars().flat_map(char::to_lowercase) {
         if c.is_ascii_alphanumeric() {
@@ -759,7 +843,7 @@ fn unique_id(name: &str, index: &BTreeMap<String, LayerMeta>) -> String {
     let base = format!("{slug}-{:08x}", hash as u32);
     let mut id = base.clone();
     let mut n = 2;
-    while index.contains_key(&id) {
+    while taken(&id) {
         id = format!("{base}-{n}");
         n += 1;
     }
@@ -816,12 +900,14 @@ mod tests {
 
     #[test]
     fn ids_are_path_safe() {
-        let index = BTreeMap::new();
-        let id = unique_id("../../etc/passwd", &index);
+        let free = |_: &str| false;
+        let id = unique_id("../../etc/passwd", free);
         assert!(id.starts_with("etc-passwd-") && valid_id(&id), "{id}");
-        assert!(unique_id("Ünïcödé ☃", &index).starts_with("n-c-d-"));
-        assert!(unique_id("☃", &index).starts_with("layer-"));
-        assert_eq!(unique_id("a", &index), unique_id("a", &index));
+        assert!(unique_id("Ünïcödé ☃", free).starts_with("n-c-d-"));
+        assert!(unique_id("☃", free).starts_with("layer-"));
+        assert_eq!(unique_id("a", free), unique_id("a", free));
+        let first = unique_id("a", free);
+        assert_eq!(unique_id("a", |id| id == first), format!("{first}-2"));
         assert!(!valid_id("../x") && !valid_id("") && !valid_id("A") && !valid_id("-x"));
         assert!(valid_step_file("step-00ff.f32") && !valid_step_file("step-.f32") && !valid_step_file("../step-1.f32"));
     }
