@@ -100,7 +100,6 @@ fn strokes_follow_the_fall_line_or_the_contours_of_a_cone() {
     for (direction, across) in [(TerrainStrokes::FallLine, 0.0f32), (TerrainStrokes::Contour, 90.0)] {
         let frame =
             renderer.render(FrameRequest::new(&camera, strokes_only(direction, 0.55), size, size)).expect("render");
-        frame.image.save(format!("/tmp/ts-cone-{direction:?}.png")).unwrap();
         let l = lum(&frame.image);
         let (window, mut checked, mut worst) = (32usize, 0, 0.0f32);
         for wy in 0..(size as usize / window) {
@@ -134,7 +133,6 @@ fn a_flat_plane_in_full_light_stays_paper() {
     for direction in [TerrainStrokes::FallLine, TerrainStrokes::Contour] {
         let style = Style { terrain_stroke_direction: direction, ..Style::default() };
         let frame = renderer.render(FrameRequest::new(&camera, &style, 192, 144).read(Readback::IDS)).expect("render");
-        frame.image.save(format!("/tmp/ts-flat-{direction:?}.png")).unwrap();
         let ids = frame.ids.expect("ids");
         let terrain: Vec<f32> =
             frame.image.pixels().zip(&ids).filter(|(_, id)| **id != 0).map(|(p, _)| luminance(p)).collect();
@@ -191,7 +189,6 @@ fn a_dolly_towards_a_slope_keeps_the_stroke_width() {
             let y = -60.0 + forward;
             let camera = Camera::perspective([0.0, y, ramp_height(y) + 8.0], 0.0, 5.0, 60.0);
             let frame = renderer.render(FrameRequest::new(&camera, &style, w, h)).expect("render");
-            frame.image.save(format!("/tmp/ts-dolly-{forward}.png")).unwrap();
             let l = lum(&frame.image);
             let window = 32usize;
             let per_window: Vec<f32> = (0..(h as usize / window))
