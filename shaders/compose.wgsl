@@ -62,6 +62,62 @@ fn tam_ink(coords: vec2<f32>, base: i32, darkness: f32, lod: f32) -> f32 {
     return 1.0 - mix(a, b, f);
 }
 
+// How many TAM layers the pixel's strokes blend: 1 (its one set of hatch coordinates), or 4
+// for object-space terrain (two orientations at two scales, see `stroke_layer`). A loop over
+// this count rather than a branch: lavapipe runs both sides of a branch for every pixel, but
+// leaves a loop as soon as all pixels of its group are done, so plants pay for one layer.
+fn stroke_layers(p: vec2<i32>) -> i32 {
+    let terrain = post.terrain_strokes != TERRAIN_IMAGE && is_terrain(textureLoad(id_tex, p, 0).xy);
+    return select(1, 4, terrain);
+}
+
+// One TAM layer of the pixel's strokes: its hatch coordinates, weight and mip level. Layer 0
+// alone is the plain lookup. Object-space terrain (gbuffer.wgsl `terrain_hatch`, Bénard et al.
+// 2010) blends its two quantized stroke orientations (hatch xy and zw, the second's share in
+// the linear-depth target's y) at the finer stroke scale and at the next coarser one (half
+// the coordinates, one mip level up), weighted by the fractional part of the scale
+// log2(tiles per pixel · tile size in pixels), so strokes keep their size on screen.
+struct StrokeLayer {
+    coords: vec2<f32>,
+    weight: f32,
+    lod: f32,
+};
+
+fn stroke_layer(p: vec2<i32>, layer: i32, layers: i32) -> StrokeLayer {
+    let hatch = textureLoad(hatch_tex, p, 0);
+    let lod = tam_lod(p);
+    if layers == 1 {
+        return StrokeLayer(hatch.xy, 1.0, lod);
+    }
+    let second = (layer & 1) == 1;
+    let coarse = layer >= 2;
+    let w = textureLoad(depth_tex, p, 0).g;
+    let f = saturate(log2(textureLoad(normal_tex, p, 0).w * post.terrain_tile));
+    let weight = select(1.0 - w, w, second) * select(1.0 - f, f, coarse);
+    let coords = select(hatch.xy, hatch.zw, second) * select(1.0, 0.5, coarse);
+    return StrokeLayer(coords, weight, lod - select(0.0, 1.0, coarse));
+}
+
+// Ink of the pixel's strokes at `darkness` from the TAM at `base`, its hatch coordinates turned
+// by `rotation` (cos, sin): the variance-preserving blend of its stroke layers (Bénard et al.
+// 2010 eq. 3, after Heitz and Neyret): m + (Σ w_i·(x_i − m)) / sqrt(Σ w_i²) with m the mean ink
+// of the tone (its darkness), so blended layers keep the contrast of one instead of fading to
+// grey half-strokes; one layer is returned as it is.
+fn stroke_ink(p: vec2<i32>, base: i32, darkness: f32, rotation: vec2<f32>) -> f32 {
+    let layers = stroke_layers(p);
+    var ink = 0.0;
+    var squares = 0.0;
+    for (var i = 0; i < layers; i++) {
+        let l = stroke_layer(p, i, layers);
+        let r = rotation;
+        let c = vec2<f32>(r.x * l.coords.x - r.y * l.coords.y, r.y * l.coords.x + r.x * l.coords.y);
+        ink += l.weight * tam_ink(c, base, darkness, l.lod);
+        squares += l.weight * l.weight;
+    }
+    let mean = saturate(darkness);
+    return saturate(mean + (ink - mean) / sqrt(max(squares, 1e-4)));
+}
+
 // Hatching of tone t (1 = white) with the pixel's TAM (its style's, or a hatch-pattern
 // mapping's), by the hatch strength.
 fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
@@ -69,19 +125,17 @@ fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
         return 0.0;
     }
     let base = data_tam_layer(data_at(p), i32(post.tam_levels));
-    return tam_ink(textureLoad(hatch_tex, p, 0).xy, base, 1.0 - t, tam_lod(p)) * post.hatch_strength;
+    return stroke_ink(p, base, 1.0 - t, vec2<f32>(1.0, 0.0)) * post.hatch_strength;
 }
 
 // The filter of one hatch-colour slot: strokes of the slot's darkness from the TAM at `base`,
 // at the hatch coordinates rotated by the slot's angle, in the slot's ink at its opacity; 1
 // (white) off the strokes.
-fn hatch_color_filter(slot: HatchColor, darkness: f32, coords: vec2<f32>, base: i32, lod: f32) -> vec3<f32> {
+fn hatch_color_filter(p: vec2<i32>, slot: HatchColor, darkness: f32, base: i32) -> vec3<f32> {
     if darkness <= 0.0 || slot.opacity <= 0.0 {
         return vec3<f32>(1.0);
     }
-    let r = slot.rotation;
-    let rotated = vec2<f32>(r.x * coords.x - r.y * coords.y, r.y * coords.x + r.x * coords.y);
-    return mix(vec3<f32>(1.0), slot.color, tam_ink(rotated, base, darkness, lod) * slot.opacity);
+    return mix(vec3<f32>(1.0), slot.color, stroke_ink(p, base, darkness, slot.rotation) * slot.opacity);
 }
 
 // Thesis 9.2.2, Fig. 9.3: several fields with equal visual importance as hatchings of different
@@ -95,12 +149,10 @@ fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
     if !HATCH_COLORS || all(darkness <= vec3<f32>(0.0)) {
         return rgb;
     }
-    let coords = textureLoad(hatch_tex, p, 0).xy;
-    let lod = tam_lod(p);
     let base = i32(post.hatch_map) * i32(post.tam_levels);
-    return rgb * hatch_color_filter(hatch_colors.slots[0], darkness.x, coords, base, lod)
-        * hatch_color_filter(hatch_colors.slots[1], darkness.y, coords, base, lod)
-        * hatch_color_filter(hatch_colors.slots[2], darkness.z, coords, base, lod);
+    return rgb * hatch_color_filter(p, hatch_colors.slots[0], darkness.x, base)
+        * hatch_color_filter(p, hatch_colors.slots[1], darkness.y, base)
+        * hatch_color_filter(p, hatch_colors.slots[2], darkness.z, base);
 }
 
 // Thesis 5.2: stylized silhouettes. Search from the pixel along E (the screen projection of the
@@ -110,7 +162,9 @@ fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
 // angle of E against the per-object orientation vector V_O, which turns with the camera roll.
 // The SAM channel (style variant) follows the tone: darker regions get heavier strokes.
 fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
-    let e = textureLoad(hatch_tex, p, 0).zw;
+    let ids = textureLoad(id_tex, p, 0).xy;
+    // The terrain has no HLP (its hatch zw holds object-space stroke coordinates).
+    let e = select(textureLoad(hatch_tex, p, 0).zw, vec2<f32>(0.0), is_terrain(ids));
     // −1 where there is nothing to search: the loop below runs to the style's support (not a
     // constant bound, which the compiler would unroll into the full 17 steps for every pixel).
     let searching = post.silhouette_support >= 1.0 && post.silhouette_strength > 0.0 && dot(e, e) >= 0.25;
@@ -118,7 +172,6 @@ fn silhouette_ink(p: vec2<i32>, t: f32, size: vec2<u32>) -> f32 {
     if support < 0 {
         return 0.0;
     }
-    let ids = textureLoad(id_tex, p, 0).xy;
     let step = vec2<f32>(e.x, -e.y);
     var v = -1;
     for (var k = 0; k <= support; k++) {

@@ -25,7 +25,14 @@ fn tone(p: vec2<i32>) -> f32 {
     if albedo.a < 0.5 {
         return 1.0;
     }
-    let light = light_from_normal(textureLoad(normal_tex, p, 0).xyz).x;
+    var light = light_from_normal(textureLoad(normal_tex, p, 0).xyz).x;
+    // The terrain's relief tone: its light relative to flat ground's, so level and sunny
+    // ground stay paper and slopes turned away from the sun darken (Imhof's shaded relief
+    // read as pen-and-ink: Buchin et al. 2011).
+    if is_terrain(textureLoad(id_tex, p, 0).xy) {
+        let flat_light = light_from_normal(vec3<f32>(0.0, 0.0, 1.0)).x;
+        light = mix(light, min(light / max(flat_light, 1e-3), 1.0), post.terrain_relief);
+    }
     let lum = sqrt(dot(albedo.rgb, vec3<f32>(0.2126, 0.7152, 0.0722)));
     let l = light * mix(1.0, lum, post.albedo_weight);
     var t = saturate((l - post.tone_reference) * post.tone_contrast + post.tone_reference);

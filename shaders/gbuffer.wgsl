@@ -158,9 +158,10 @@ fn vertex_out(in: VertexIn, p: vec3<f32>) -> VertexOut {
         out.reference_uv = references[in.reference_base + in.hlp_index];
     }
     // Wood: a cylinder around the model's z axis, WOOD_TILES around and one tile per
-    // WOOD_TILE_HEIGHT metres up. (Terrain uses image-space coordinates, see fs_main.)
+    // WOOD_TILE_HEIGHT metres up. Terrain: its world xy in metres (`terrain_hatch`).
     let around = atan2(in.position.y, in.position.x) / (2.0 * PI) * WOOD_TILES;
-    out.object_uv = vec2<f32>(around, in.position.z * in.offset_scale.w / WOOD_TILE_HEIGHT);
+    let wood_uv = vec2<f32>(around, in.position.z * in.offset_scale.w / WOOD_TILE_HEIGHT);
+    out.object_uv = select(wood_uv, world.xy, SURFACE == 0u);
     out.leaf = vec3<f32>(0.0);
     return out;
 }
@@ -264,11 +265,13 @@ struct GBuffer {
     @location(0) albedo: vec4<f32>,
     // xyz: normal blended towards the HLP normal; w: TAM tiles per pixel (for the mip level)
     @location(1) normal: vec4<f32>,
-    // x: linear depth (m); y: HLP radius in pixels (0 without HLP)
+    // x: linear depth (m); y: HLP radius in pixels (0 without HLP; object-space terrain: the
+    // share of its second stroke orientation, `TerrainHatch`)
     @location(2) depth: vec2<f32>,
     // x: object ID; y: part kind << 24 | HLP index + 1 (the patch ID of thesis Fig. 5.7)
     @location(3) ids: vec2<u32>,
     // xy: hatch texture coordinates T (tiles); zw: E, the HLP normal's screen direction (y up)
+    // (object-space terrain: the coordinates of its two stroke orientations, `TerrainHatch`)
     @location(4) hatch: vec4<f32>,
 };
 
@@ -285,6 +288,53 @@ fn hybrid_uv(frag: vec2<f32>, in: VertexOut) -> vec2<f32> {
     let dz = (in.view_depth - (depth - radius)) / radius;
     let f = 1.0 + layer.hatch_surface * dz * dz;
     return in.reference_uv + f * q;
+}
+
+// The terrain's strokes (`render::style::TerrainStrokes`).
+const TERRAIN_IMAGE: u32 = 0u;
+const TERRAIN_CONTOUR: u32 = 1u;
+// Stroke orientations of object-space terrain hatching: a pixel blends the two quantized
+// orientations nearest its own, each with hatch coordinates fixed to the ground, so a
+// direction that varies over the slope never rotates (and swirls) the coordinates themselves.
+const TERRAIN_ORIENTATIONS: f32 = 8.0;
+
+// What the G-buffer holds of object-space terrain hatching (compose.wgsl's `terrain_layers`
+// reads it): `hatch` the TAM coordinates of the two orientations at the finer stroke scale,
+// `tiles_per_px` the footprint at that scale and `weight` the second orientation's share.
+struct TerrainHatch {
+    hatch: vec4<f32>,
+    tiles_per_px: f32,
+    weight: f32,
+};
+
+// Object-space terrain strokes (Bénard et al. 2010, "infinite zoom" of a fractalized
+// texture): the TAM is laid on the ground's xy at two power-of-two scales, 2^k and 2^(k+1)
+// metres per tile, chosen from the pixel's footprint so that a tile of the finer one covers
+// between a half and one `terrain_tile` (half `image_hatch_scale`: the coarser one never
+// magnifies a TAM made for that scale) in pixels; the compose pass blends the two by the
+// fractional part of the scale, and the TAM's mip levels keep the stroke width (Praun et al.
+// 2001). The orientation weight is sharpened (a quarter of the way on either side of a bin is
+// that bin alone) so fewer pixels show two half-strength stroke sets. The stroke
+// direction follows the land (Bratkova et al. 2009, Buchin et al. 2011): the fall line is the
+// horizontal part of the normal (downhill), the contour direction its perpendicular; on
+// near-flat ground it fades to a fixed direction instead of noise.
+fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>) -> TerrainHatch {
+    let metres_per_px = sqrt(length(dpdx(world_xy)) * length(dpdy(world_xy)));
+    let scale = exp2(floor(log2(max(metres_per_px * layer.terrain_tile, 1e-6))));
+    var d = n.xy + vec2<f32>(0.01, 0.0);
+    if layer.terrain_strokes == TERRAIN_CONTOUR {
+        d = vec2<f32>(-d.y, d.x);
+    }
+    let x = fract(atan2(d.y, d.x) / PI) * TERRAIN_ORIENTATIONS;
+    let a = floor(x);
+    let b = a + 1.0;
+    let p = world_xy / scale;
+    let ra = vec2<f32>(cos(a * PI / TERRAIN_ORIENTATIONS), sin(a * PI / TERRAIN_ORIENTATIONS));
+    let rb = vec2<f32>(cos(b * PI / TERRAIN_ORIENTATIONS), sin(b * PI / TERRAIN_ORIENTATIONS));
+    // u along the stroke (the TAM's strokes run along u), v across.
+    let ta = vec2<f32>(dot(p, ra), ra.x * p.y - ra.y * p.x);
+    let tb = vec2<f32>(dot(p, rb), rb.x * p.y - rb.y * p.x);
+    return TerrainHatch(vec4<f32>(ta, tb), metres_per_px / scale, smoothstep(0.25, 0.75, x - a));
 }
 
 // 4×4 ordered-dither value of a pixel in (0, 1): plants between two levels of detail draw
@@ -313,9 +363,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let frag = in.clip;
     let texel = textureSample(base_tex, base_sampler, in.uv) * material.base_color;
     let has_hlp = SURFACE >= 2u && in.hlp_depth_radius.y > 0.0;
-    // Terrain is hatched in image space: seen from walking height a planar object-space mapping
-    // is magnified far beyond the TAM's finest level in the foreground.
-    let image_space = SURFACE == 0u || layer.image_space != 0u;
+    let image_space = select(layer.image_space != 0u, layer.terrain_strokes == TERRAIN_IMAGE, SURFACE == 0u);
     let t = select(select(in.object_uv, hybrid_uv(frag.xy, in), has_hlp), frag.xy / layer.image_hatch_scale, image_space);
     // Area-based footprint: the geometric mean of the two axes, so grazing terrain keeps
     // crisp (foreshortened) strokes instead of the blur of the coarsest axis.
@@ -375,5 +423,11 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     out.depth = vec2<f32>(in.view_depth, radius_px);
     out.ids = in.ids;
     out.hatch = vec4<f32>(t, e);
+    if SURFACE == 0u && !image_space {
+        let terrain = terrain_hatch(in.object_uv, n);
+        out.hatch = terrain.hatch;
+        out.normal.w = terrain.tiles_per_px;
+        out.depth.y = terrain.weight;
+    }
     return out;
 }

@@ -33,6 +33,15 @@ fn use_style(object_id: u32) {
     post = styles.slots[select(style_slot(object_id), 0u, UNIFORM_STYLE)];
 }
 
+// The terrain's strokes as `PostStyle.terrain_strokes` gives them (`render::style::TerrainStrokes`).
+const TERRAIN_IMAGE: u32 = 0u;
+
+// Whether the ID-buffer pair `ids` (object ID, part kind << 24 | patch) is terrain (part kind
+// 0, `render::gbuffer::Surface::Terrain`) rather than background or a plant.
+fn is_terrain(ids: vec2<u32>) -> bool {
+    return ids.x != 0u && (ids.y >> 24u) == 0u;
+}
+
 fn clamp_coord(p: vec2<i32>, size: vec2<u32>) -> vec2<i32> {
     return clamp(p, vec2<i32>(0), vec2<i32>(size) - 1);
 }

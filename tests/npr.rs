@@ -121,9 +121,11 @@ fn hybrid_hatching_flickers_less_than_image_space_hatching() {
     let renderer = full_detail(&scene);
     let path = camera_path(&scene.default_camera, 3);
     let base = Style { silhouette_strength: 0.0, ..Style::default() };
-    let hybrid =
-        flicker(&renderer, &Style { hatch_space: HatchSpace::Hybrid, ..base.clone() }, &path, 160, 120).unwrap();
-    let image = flicker(&renderer, &Style { hatch_space: HatchSpace::Image, ..base }, &path, 160, 120).unwrap();
+    let hybrid = flicker(&renderer, &Style { hatch_space: HatchSpace::Hybrid, ..base.clone() }, &path, 160, 120)
+        .unwrap()
+        .whole_frame;
+    let image =
+        flicker(&renderer, &Style { hatch_space: HatchSpace::Image, ..base }, &path, 160, 120).unwrap().whole_frame;
     assert!(hybrid > 0.0 && image > 0.0);
     assert!(hybrid < image, "hybrid {hybrid} vs image-space {image}");
 }

@@ -332,7 +332,9 @@ fn three_fields_as_three_hatch_colours() {
     // The constant field alone in the south-west: blue strokes at its middle darkness.
     let blue_alone = coverage(&pixels_in(&image, west, south), blue);
     assert!((0.3..0.7).contains(&blue_alone), "blue ink covers {blue_alone} of the south-west");
-    assert!(count(west, north, blue) >= 10 && count(east, south, blue) >= 10, "blue strokes beside green and red");
+    // (The terrain's object-space strokes are finer than image-space ones at this scale, so
+    // fewer pixels show one ink alone.)
+    assert!(count(west, north, blue) >= 3 && count(east, south, blue) >= 3, "blue strokes beside green and red");
     // The inks multiply (no field hides another): where all three are high, the crossing
     // strokes are darkest.
     let mean_luminance = |x, y| {

@@ -37,8 +37,9 @@ enum Command {
     /// Benchmark scenes of several sizes generated from the scene's rules (README, "Benchmark").
     Bench(BenchArgs),
     /// Measure temporal coherence: render a smooth camera path (pan, dolly, orbit, roll) from
-    /// the scene's default camera and print the motion-compensated flicker of the hybrid
-    /// hatching next to plain image-space hatching with the same art map and tone.
+    /// the scene's default camera and print the motion-compensated flicker, of the whole frame
+    /// and of the terrain alone, of object-space strokes (hybrid plants, terrain strokes on the
+    /// ground) next to plain image-space hatching with the same art map and tone.
     Coherence {
         /// Scene file.
         #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
@@ -436,27 +437,48 @@ fn coherence(
     json: bool,
     cache: &CacheArgs,
 ) -> Result<()> {
-    use landsketch::render::coherence::{camera_path, flicker};
-    use landsketch::render::style::HatchSpace;
+    use landsketch::render::coherence::{Flicker, camera_path, flicker};
+    use landsketch::render::style::{HatchSpace, TerrainStrokes};
     let styles = view_style(None, style, &[])?;
     let scene = load_scene(scene)?;
     let base = frame_style(&styles, &scene)?.base;
     let renderer = Renderer::with_options(Arc::new(Gpu::new()?), &scene, &cache.render_options()?)?;
     let path = camera_path(&scene.default_camera, steps);
-    let mut rows = Vec::new();
-    for (name, space) in [("hybrid", HatchSpace::Hybrid), ("image-space", HatchSpace::Image)] {
-        let style = Style { hatch_space: space, ..base.clone() };
-        rows.push((name, flicker(&renderer, &style, &path, width, height)?));
-    }
+    // The default: hybrid plants on object-space terrain (fall line unless the style names a
+    // direction); the baseline: image-space hatching of both.
+    let terrain = match base.terrain_stroke_direction {
+        TerrainStrokes::Image => TerrainStrokes::FallLine,
+        direction => direction,
+    };
+    let object = Style { hatch_space: HatchSpace::Hybrid, terrain_stroke_direction: terrain, ..base.clone() };
+    let image = Style { hatch_space: HatchSpace::Image, terrain_stroke_direction: TerrainStrokes::Image, ..base };
+    let object: Flicker = flicker(&renderer, &object, &path, width, height)?;
+    let image: Flicker = flicker(&renderer, &image, &path, width, height)?;
+    let pair = |a: f64, b: f64| serde_json::json!({ "object_space": a, "image_space": b });
     if json {
-        let map: serde_json::Map<String, serde_json::Value> =
-            rows.iter().map(|(name, value)| (name.to_string(), serde_json::json!(value))).collect();
-        println!("{}", serde_json::json!({ "frames": path.len(), "width": width, "height": height, "flicker": map }));
+        println!(
+            "{}",
+            serde_json::json!({
+                "frames": path.len(), "width": width, "height": height,
+                "whole_frame": pair(object.whole_frame, image.whole_frame),
+                "terrain": pair(object.terrain, image.terrain),
+                "terrain_ink": pair(object.terrain_ink, image.terrain_ink),
+            })
+        );
     } else {
         println!("{} frames at {width}x{height}: mean motion-compensated luminance difference", path.len());
-        for (name, value) in rows {
-            println!("{name:<12} {value:.5}");
+        println!("{:<14} {:>12} {:>12} {:>12}", "", "whole frame", "terrain", "terrain ink");
+        for (name, f) in [("object-space", object), ("image-space", image)] {
+            println!("{name:<14} {:>12.5} {:>12.5} {:>12.3}", f.whole_frame, f.terrain, f.terrain_ink);
         }
+        let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 0.0 };
+        println!(
+            "{:<14} {:>12.3} {:>12.3} {:>12.3}",
+            "ratio",
+            ratio(object.whole_frame, image.whole_frame),
+            ratio(object.terrain, image.terrain),
+            ratio(object.terrain_ink, image.terrain_ink)
+        );
     }
     Ok(())
 }

@@ -5,10 +5,12 @@
 
 use super::RenderError;
 use super::gbuffer::BACKGROUND_DEPTH;
+use super::layer_code::LayerCode;
 use super::renderer::{FrameRequest, Readback, Renderer};
 use super::style::Style;
 use crate::scene::camera::Camera;
 use glam::{Vec3, Vec4};
+use serde::Serialize;
 
 /// A smooth camera path from `start`: a pan (yaw +8°), a dolly (6 m forward), an orbit (10°
 /// around a point 30 m ahead) and a roll (to 12°), `steps` frames each.
@@ -69,44 +71,97 @@ fn project(camera: &Camera, p: Vec3, width: u32, height: u32) -> Option<(f32, f3
     Some(((ndc_x + 1.0) * 0.5 * width as f32 - 0.5, (1.0 - ndc_y) * 0.5 * height as f32 - 0.5, depth))
 }
 
-/// Mean absolute luminance difference between `current` and `previous` after reprojecting each
-/// of the current frame's geometry pixels into the previous frame; pixels that were hidden or
-/// outside the previous frame (depth mismatch over 2 %) are skipped. Returns the mean and the
-/// number of pixels compared. Each frame is its camera, image and linear depth.
-pub fn compensated_difference(
-    previous: (&Camera, &image::RgbaImage, &[f32]),
-    current: (&Camera, &image::RgbaImage, &[f32]),
-) -> (f64, usize) {
-    let (w, h) = current.1.dimensions();
-    let mut sum = 0.0;
-    let mut count = 0usize;
+/// One frame of a coherence measurement: its camera, image, linear depth and object IDs.
+pub struct MeasuredFrame<'a> {
+    /// The camera the frame was rendered with.
+    pub camera: &'a Camera,
+    /// The rendered image.
+    pub image: &'a image::RgbaImage,
+    /// Linear depth per pixel (metres).
+    pub depth: &'a [f32],
+    /// Object ID per pixel (its layer code in the top bits).
+    pub ids: &'a [u32],
+}
+
+/// Sums of absolute luminance differences and pixel counts: of every geometry pixel, and of
+/// the terrain's alone.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Difference {
+    /// Sum of the differences of all compared pixels.
+    pub sum: f64,
+    /// Pixels compared.
+    pub count: usize,
+    /// Sum of the differences of the compared terrain pixels.
+    pub terrain_sum: f64,
+    /// Terrain pixels compared.
+    pub terrain_count: usize,
+}
+
+impl Difference {
+    /// The mean difference of all compared pixels (0 when none was).
+    pub fn mean(&self) -> f64 {
+        if self.count == 0 { 0.0 } else { self.sum / self.count as f64 }
+    }
+
+    /// The mean difference of the compared terrain pixels (0 when none was).
+    pub fn terrain_mean(&self) -> f64 {
+        if self.terrain_count == 0 { 0.0 } else { self.terrain_sum / self.terrain_count as f64 }
+    }
+}
+
+/// Absolute luminance differences between `current` and `previous` after reprojecting each of
+/// the current frame's geometry pixels into the previous frame; pixels that were hidden or
+/// outside the previous frame (depth mismatch over 2 %) are skipped. Terrain pixels (by the
+/// current frame's object IDs) are also summed on their own.
+pub fn compensated_difference(previous: &MeasuredFrame, current: &MeasuredFrame) -> Difference {
+    let (w, h) = current.image.dimensions();
+    let mut diff = Difference::default();
     for y in 0..h {
         for x in 0..w {
-            let depth = current.2[(y * w + x) as usize];
+            let index = (y * w + x) as usize;
+            let depth = current.depth[index];
             if f64::from(depth) >= BACKGROUND_DEPTH * 0.5 {
                 continue;
             }
-            let world = unproject(current.0, x as f32, y as f32, depth, w, h);
-            let Some((px, py, pd)) = project(previous.0, world, w, h) else { continue };
+            let world = unproject(current.camera, x as f32, y as f32, depth, w, h);
+            let Some((px, py, pd)) = project(previous.camera, world, w, h) else { continue };
             let (qx, qy) = (px.round(), py.round());
             if qx < 0.0 || qy < 0.0 || qx >= w as f32 || qy >= h as f32 {
                 continue;
             }
             let (qx, qy) = (qx as u32, qy as u32);
-            let previous_depth = previous.2[(qy * w + qx) as usize];
+            let previous_depth = previous.depth[(qy * w + qx) as usize];
             if (previous_depth - pd).abs() > 0.02 * pd {
                 continue;
             }
-            let a = luminance(current.1.get_pixel(x, y));
-            let b = luminance(previous.1.get_pixel(qx, qy));
-            sum += f64::from((a - b).abs());
-            count += 1;
+            let a = luminance(current.image.get_pixel(x, y));
+            let b = luminance(previous.image.get_pixel(qx, qy));
+            let d = f64::from((a - b).abs());
+            diff.sum += d;
+            diff.count += 1;
+            if current.ids.get(index).is_some_and(|id| LayerCode::of_object_id(*id) == LayerCode::TERRAIN) {
+                diff.terrain_sum += d;
+                diff.terrain_count += 1;
+            }
         }
     }
-    (if count == 0 { 0.0 } else { sum / count as f64 }, count)
+    diff
 }
 
-/// The flicker figure of `style` along `path`: the mean over consecutive frame pairs of
+/// The flicker figures of one style along a camera path.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Flicker {
+    /// Mean over consecutive frame pairs of the mean difference of every compared pixel.
+    pub whole_frame: f64,
+    /// The same of the terrain's pixels alone.
+    pub terrain: f64,
+    /// The share of the first frame's terrain pixels more ink than paper (luminance below
+    /// 0.5): the check that less flicker comes neither from fewer strokes nor from blurred,
+    /// grey ones.
+    pub terrain_ink: f64,
+}
+
+/// The flicker figures of `style` along `path`: the mean over consecutive frame pairs of
 /// [`compensated_difference`], rendered with one view state so the hybrid hatching follows the
 /// camera.
 pub fn flicker(
@@ -115,26 +170,45 @@ pub fn flicker(
     path: &[Camera],
     width: u32,
     height: u32,
-) -> Result<f64, RenderError> {
+) -> Result<Flicker, RenderError> {
     let mut state = renderer.new_view_state();
-    let mut previous: Option<(Camera, image::RgbaImage, Vec<f32>)> = None;
-    let mut total = 0.0;
-    let mut pairs = 0usize;
+    let mut previous: Option<(Camera, image::RgbaImage, Vec<f32>, Vec<u32>)> = None;
+    let (mut whole, mut terrain) = ((0.0, 0usize), (0.0, 0usize));
+    let mut terrain_ink = None;
     for camera in path {
         let request = FrameRequest::new(camera, style, width, height).history(&mut state);
-        let frame = renderer.render(request.read(Readback::DEPTH))?;
+        let frame = renderer.render(request.read(Readback { depth: true, ids: true }))?;
         let depth = frame.depth.unwrap_or_default();
-        if let Some((prev_cam, prev_image, prev_depth)) = &previous {
-            let (diff, count) =
-                compensated_difference((prev_cam, prev_image, prev_depth), (camera, &frame.image, &depth));
-            if count > 0 {
-                total += diff;
-                pairs += 1;
+        let ids = frame.ids.unwrap_or_default();
+        terrain_ink.get_or_insert_with(|| terrain_ink_share(&frame.image, &ids));
+        if let Some((prev_cam, prev_image, prev_depth, prev_ids)) = &previous {
+            let before = MeasuredFrame { camera: prev_cam, image: prev_image, depth: prev_depth, ids: prev_ids };
+            let now = MeasuredFrame { camera, image: &frame.image, depth: &depth, ids: &ids };
+            let diff = compensated_difference(&before, &now);
+            if diff.count > 0 {
+                whole = (whole.0 + diff.mean(), whole.1 + 1);
+            }
+            if diff.terrain_count > 0 {
+                terrain = (terrain.0 + diff.terrain_mean(), terrain.1 + 1);
             }
         }
-        previous = Some((*camera, frame.image, depth));
+        previous = Some((*camera, frame.image, depth, ids));
     }
-    Ok(if pairs == 0 { 0.0 } else { total / pairs as f64 })
+    let mean = |(sum, pairs): (f64, usize)| if pairs == 0 { 0.0 } else { sum / pairs as f64 };
+    Ok(Flicker { whole_frame: mean(whole), terrain: mean(terrain), terrain_ink: terrain_ink.unwrap_or(0.0) })
+}
+
+/// The share of the terrain pixels of `image` (by the object IDs `ids`) more ink than paper:
+/// luminance below 0.5.
+pub fn terrain_ink_share(image: &image::RgbaImage, ids: &[u32]) -> f64 {
+    let (mut inked, mut terrain) = (0usize, 0usize);
+    for (pixel, id) in image.pixels().zip(ids) {
+        if LayerCode::of_object_id(*id) == LayerCode::TERRAIN {
+            terrain += 1;
+            inked += usize::from(luminance(pixel) < 0.5);
+        }
+    }
+    if terrain == 0 { 0.0 } else { inked as f64 / terrain as f64 }
 }
 
 #[cfg(test)]

@@ -148,8 +148,13 @@ gpu_block! {
         pub hatch_tiles: f32,
         /// Surface function c (eq. 6.6).
         pub hatch_surface: f32,
-        /// Image-space tile size in pixels.
+        /// Image-space tile size in pixels (also the object-space terrain strokes' size on screen).
         pub image_hatch_scale: f32,
+        /// The terrain's strokes ([`super::style::TerrainStrokes::code`]).
+        pub terrain_strokes: u32,
+        /// The largest tile of the terrain's object-space strokes on screen, in pixels
+        /// ([`super::style::Style::terrain_tile`]).
+        pub terrain_tile: f32,
         /// Leaf mode ([`super::style::LeafMode`]: 0 original, 1 billboard, 2 reoriented,
         /// 3 elliptical).
         pub leaf_mode: u32,
@@ -177,6 +182,8 @@ impl LayerStyle {
             hatch_tiles: style.hatch_tiles,
             hatch_surface: style.hatch_surface,
             image_hatch_scale: style.image_hatch_scale,
+            terrain_strokes: style.terrain_stroke_direction.code(),
+            terrain_tile: style.terrain_tile(),
             leaf_mode: style.leaf_mode as u32,
             leaf_size: style.leaf_size,
             leaf_shape: style.leaf_shape,

@@ -20,11 +20,31 @@ use std::fmt;
 #[serde(rename_all = "snake_case")]
 pub enum HatchSpace {
     /// The thesis' hybrid parametrization (eq. 6.2–6.6) on foliage, cylindrical object space on
-    /// trunks and branches; the terrain is hatched in image space.
+    /// trunks and branches (the terrain follows `terrain_stroke_direction`).
     Hybrid,
     /// Plain image-space hatching (screen coordinates), the baseline the coherence figure is
     /// compared with.
     Image,
+}
+
+/// Where the terrain's hatch strokes come from and which way they run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TerrainStrokes {
+    /// Image-space hatching (screen coordinates): the strokes stay on the screen when the
+    /// camera moves; the coherence baseline.
+    Image,
+    /// Strokes attached to the ground, along the contour direction (level lines).
+    Contour,
+    /// Strokes attached to the ground, along the fall line (hachures, Imhof).
+    FallLine,
+}
+
+impl TerrainStrokes {
+    /// The code the shaders read (`TERRAIN_IMAGE`, `TERRAIN_CONTOUR`, `TERRAIN_FALL_LINE`).
+    pub fn code(self) -> u32 {
+        self as u32
+    }
 }
 
 /// How the leaves of plants at full detail are drawn (thesis 4.1–4.2; SPEC R1, R2).
@@ -109,6 +129,16 @@ impl FieldValue for bool {
 }
 
 impl FieldValue for HatchSpace {
+    const KIND: &'static str = "string";
+    fn numbers(&self) -> Vec<f32> {
+        Vec::new()
+    }
+    fn to_json(&self) -> Value {
+        serde_json::to_value(self).unwrap_or(Value::Null)
+    }
+}
+
+impl FieldValue for TerrainStrokes {
     const KIND: &'static str = "string";
     fn numbers(&self) -> Vec<f32> {
         Vec::new()
@@ -392,9 +422,20 @@ style_fields! {
     hatch_tiles: f32 = 2.0, 0.05..=64;
     /// `c` of the surface function f(A) (thesis eq. 6.6); 0 keeps hatching flat.
     hatch_surface: f32 = 0.0, 0..=10;
-    /// Size of one TAM tile in pixels where hatching is in image space (the terrain, and
-    /// everything with `hatch_space: image`).
+    /// Size of one TAM tile in pixels where hatching is in image space (everything with
+    /// `hatch_space: image`, the terrain with `terrain_stroke_direction: image`), and the size
+    /// on screen the terrain's object-space strokes keep from the feet to the horizon.
     image_hatch_scale: f32 = 256.0, 4..=4096;
+    /// The terrain's hatch strokes: `fall_line` (hachures down the slope) or `contour` (along
+    /// the level lines), both attached to the ground with constant width and spacing on
+    /// screen (two power-of-two stroke scales blended by the screen footprint, Bénard et al.
+    /// 2010 infinite zoom, over the TAM's mip levels), or `image` (screen-space hatching,
+    /// glued to the screen when the camera moves).
+    terrain_stroke_direction: TerrainStrokes = TerrainStrokes::FallLine;
+    /// Tone of the terrain from its light relative to flat ground's, 0 (the absolute light,
+    /// as every other surface) to 1 (flat ground and slopes facing the sun are paper, slopes
+    /// turned away from it dark: the pen-and-ink convention of Imhof and Buchin et al. 2011).
+    terrain_relief: f32 = 1.0, 0..=1;
     /// How dark hatching is drawn, 0 (none) to 1.
     hatch_strength: f32 = 1.0, 0..=1;
     /// Lifts the hatch tone towards white, 0 (as lit) to 1 (brightest: no strokes), thesis
@@ -509,6 +550,16 @@ impl Style {
             leaf_outline: to(self.leaf_outline, 0.0),
             ..self.clone()
         }
+    }
+
+    /// The largest tile of the terrain's object-space strokes on screen, in pixels: half
+    /// `image_hatch_scale`. The strokes blend two power-of-two scales whose tiles cover
+    /// between a quarter and a half of `image_hatch_scale` pixels (the finer) and between a
+    /// half and one (the coarser), so a TAM made for image-space hatching at that scale is
+    /// never magnified and its strokes keep their width (`shaders/gbuffer.wgsl`
+    /// `terrain_hatch`).
+    pub fn terrain_tile(&self) -> f32 {
+        0.5 * self.image_hatch_scale
     }
 
     /// This style with the fields of `partial` replaced, validated: out-of-range values are

@@ -64,6 +64,13 @@ gpu_block! {
         pub sky: f32,
         /// The style's TAM index (the data pass's default hatch pattern).
         pub hatch_map: u32,
+        /// The terrain's strokes ([`crate::render::style::TerrainStrokes::code`]).
+        pub terrain_strokes: u32,
+        /// The largest tile of the terrain's object-space strokes on screen, in pixels
+        /// ([`Style::terrain_tile`]).
+        pub terrain_tile: f32,
+        /// Terrain tone from light relative to flat ground's (0..1).
+        pub terrain_relief: f32,
         /// Ink colour (sRGB).
         pub ink: Vec3f,
         /// Paper colour (sRGB).
@@ -126,6 +133,9 @@ impl PostStyle {
             toon_levels: style.toon_levels as f32,
             sky: style.sky,
             hatch_map: style.hatch_map as u32,
+            terrain_strokes: style.terrain_stroke_direction.code(),
+            terrain_tile: style.terrain_tile(),
+            terrain_relief: style.terrain_relief,
             ink: Vec3f(style.ink),
             paper: Vec3f(style.paper),
             sky_zenith: Vec3f(style.sky_zenith),
