@@ -499,3 +499,40 @@ fn shapefile_points(path: &Path) -> Vec<(f64, f64)> {
     }
     out
 }
+
+#[test]
+fn geojson_label_polygons_upload_as_a_label_field() {
+    use landsketch::fields::{FieldFormat, FieldKind, LoadOptions, load_bytes};
+    // Two fields of the Boulder foothills drawn in WGS 84, classes 3 and 7.
+    let square = |x0: f64, y0: f64, class: u32| {
+        feature(
+            &format!(
+                r#"{{"type": "Polygon", "coordinates": [[[{x0}, {y0}], [{}, {y0}], [{}, {}], [{x0}, {}], [{x0}, {y0}]]]}}"#,
+                x0 + 0.01,
+                x0 + 0.01,
+                y0 + 0.01,
+                y0 + 0.01
+            ),
+            &format!(r#""class": {class}"#),
+        )
+    };
+    let text = collection(&[square(-105.50, 40.10, 3), square(-105.48, 40.10, 7)], None);
+    assert_eq!(FieldFormat::detect(text.as_bytes(), Some("zones.geojson")).unwrap(), FieldFormat::GeoJson);
+    let scratch = tempfile::tempdir().unwrap();
+    let f = load_bytes(text.as_bytes(), Some("zones.geojson"), &LoadOptions::new(FieldKind::Label), scratch.path())
+        .unwrap();
+    assert_eq!(f.crs().crs().epsg(), Some(4326));
+    assert_eq!(f.sample(0, -105.495, 40.105), Some(3.0));
+    assert_eq!(f.sample(0, -105.475, 40.105), Some(7.0));
+    assert_eq!(f.sample(0, -105.485, 40.105), None, "between the polygons");
+    // A scalar GeoJSON, a missing property and JSON that is not GeoJSON are refused by name.
+    let scalar =
+        load_bytes(text.as_bytes(), Some("zones.geojson"), &LoadOptions::new(FieldKind::Scalar), scratch.path());
+    assert!(scalar.unwrap_err().to_string().contains("kind=label"));
+    let other = LoadOptions { variable: Some("zone".into()), ..LoadOptions::new(FieldKind::Label) };
+    let err = load_bytes(text.as_bytes(), Some("zones.geojson"), &other, scratch.path()).unwrap_err().to_string();
+    assert!(err.contains("zones.geojson") && err.contains("feature 0") && err.contains("'zone'"), "{err}");
+    let err = load_bytes(br#"{"trees": 1}"#, Some("t.geojson"), &LoadOptions::new(FieldKind::Label), scratch.path())
+        .unwrap_err();
+    assert!(err.to_string().contains("t.geojson") && err.to_string().contains("not GeoJSON"), "{err}");
+}

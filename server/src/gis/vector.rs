@@ -174,6 +174,21 @@ pub fn read_geojson(
     Ok(out)
 }
 
+/// The CRS of GeoJSON text (see [`crs_member`]).
+pub fn geojson_crs(path: &Path, text: &str) -> Result<CrsDefinition, VectorError> {
+    let json: Value = serde_json::from_str(text)
+        .map_err(|e| VectorError::Format { path: path.to_path_buf(), message: format!("not GeoJSON: {e}") })?;
+    crs_member(&json).map_err(|source| VectorError::Crs { path: path.to_path_buf(), source })
+}
+
+/// The bounding box of features (scene metres); `None` for none.
+pub fn bounds(features: &[SceneFeature]) -> Option<([f64; 2], [f64; 2])> {
+    features.iter().filter_map(|f| f.geometry.bounding_rect()).fold(None, |acc, r| {
+        let (lo, hi) = acc.unwrap_or(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]));
+        Some(([lo[0].min(r.min().x), lo[1].min(r.min().y)], [hi[0].max(r.max().x), hi[1].max(r.max().y)]))
+    })
+}
+
 /// The CRS of a GeoJSON object: its `crs` member (`{"type": "name", "properties": {"name":
 /// "urn:ogc:def:crs:EPSG::27700"}}` or the older `{"type": "EPSG", "properties": {"code":
 /// 27700}}`), WGS 84 without one (RFC 7946).
