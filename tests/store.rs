@@ -245,9 +245,9 @@ fn bad_uploads_leave_the_store_unchanged() {
         (
             "bad crs",
             tif.clone(),
-            UploadRequest { crs: Some("EPSG:27700".into()), ..request("c", FieldKind::Scalar) },
+            UploadRequest { crs: Some("EPSG:26712".into()), ..request("c", FieldKind::Scalar) },
             422,
-            "EPSG:27700",
+            "EPSG:26712",
         ),
         (
             "asc without crs",

@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use landsketch::api::{Server, ServerConfig};
 use landsketch::fields::{self, ColorMapName, ColorMapSpec, FieldKind, Legend, LoadOptions, Lut, Mapping};
-use landsketch::gis::CrsDefinition;
+use landsketch::gis::{Crs, CrsDefinition, Extent, ReprojectError, Transformer};
 use landsketch::prep::cache::DiskCache;
 use landsketch::render::presets::PRESETS;
 use landsketch::render::projection::DataView;
@@ -284,12 +284,22 @@ fn main() -> Result<()> {
             let ([x0, y0], [x1, y1]) = scene.terrain.bounds();
             println!("scene      {}", scene.name);
             println!(
-                "terrain    {}x{} cells, x {x0:.0}..{x1:.0} m, y {y0:.0}..{y1:.0} m, {} triangles, CRS {:?}",
+                "terrain    {}x{} cells, x {x0:.0}..{x1:.0} m, y {y0:.0}..{y1:.0} m, {} triangles",
                 scene.terrain.dem.width,
                 scene.terrain.dem.height,
                 scene.terrain.mesh.triangle_count(),
-                scene.terrain.dem.crs
             );
+            let crs = scene.terrain.dem.crs;
+            let e = scene.terrain.dem.extent();
+            println!("crs        {crs}");
+            println!("extent     x {} .. {}, y {} .. {} in {crs}", e.min_x, e.max_x, e.min_y, e.max_y);
+            match wgs84_extent(&crs, &e) {
+                Ok((lo, hi)) => println!(
+                    "wgs84      lon {:.6} .. {:.6}, lat {:.6} .. {:.6} (EPSG:4326)",
+                    lo[0], hi[0], lo[1], hi[1]
+                ),
+                Err(err) => println!("wgs84      not available: {err}"),
+            }
             for s in &scene.species {
                 println!(
                     "species    {:<12} {:>6} triangles, {:.1} m tall",
@@ -304,6 +314,27 @@ fn main() -> Result<()> {
             println!("camera     {:?}", scene.default_camera);
             Ok(())
         }
+    }
+}
+
+/// The lon/lat box (WGS 84) of an extent in `crs`, from its edges sampled at 16 points each.
+fn wgs84_extent(crs: &Crs, e: &Extent) -> Result<([f64; 2], [f64; 2]), ReprojectError> {
+    let to_wgs84 = Transformer::new(&CrsDefinition::from_crs(crs)?, &CrsDefinition::wgs84())?;
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for k in 0..=16 {
+        let t = f64::from(k) / 16.0;
+        let (x, y) = (e.min_x + t * e.width(), e.min_y + t * e.height());
+        for (px, py) in [(x, e.min_y), (x, e.max_y), (e.min_x, y), (e.max_x, y)] {
+            if let Some((lon, lat)) = to_wgs84.transform(px, py) {
+                lo = [lo[0].min(lon), lo[1].min(lat)];
+                hi = [hi[0].max(lon), hi[1].max(lat)];
+            }
+        }
+    }
+    if lo[0].is_finite() {
+        Ok((lo, hi))
+    } else {
+        Err(ReprojectError::NoOverlap { what: "no point of the extent".into(), crs: "EPSG:4326 (WGS 84)".into() })
     }
 }
 

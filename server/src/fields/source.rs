@@ -27,6 +27,8 @@ pub enum FieldFormat {
     AsciiGrid,
     /// NetCDF-3 classic or 64-bit offset (`.nc`).
     NetCdf,
+    /// GeoJSON polygons with an integer label property, rasterized as a label field.
+    GeoJson,
 }
 
 impl FieldFormat {
@@ -52,6 +54,9 @@ impl FieldFormat {
         if ["ncols", "nrows"].iter().any(|k| text_start.starts_with(k)) {
             return Ok(FieldFormat::AsciiGrid);
         }
+        if text_start.trim_start_matches('\u{feff}').starts_with('{') {
+            return Ok(FieldFormat::GeoJson);
+        }
         let ext = filename.and_then(|f| Path::new(f).extension()).and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         Err(FieldError::Format {
             context,
@@ -59,7 +64,7 @@ impl FieldFormat {
                 Some("tif" | "tiff") => "not a TIFF file (bad signature)".into(),
                 Some("nc") => "not a NetCDF-3 file (bad signature)".into(),
                 Some("asc") => "not an ESRI ASCII grid (no ncols/nrows header)".into(),
-                _ => "unknown format: expected GeoTIFF, ESRI ASCII grid (.asc) or NetCDF-3 (.nc)".into(),
+                _ => "unknown format: expected GeoTIFF, ESRI ASCII grid (.asc), NetCDF-3 (.nc) or GeoJSON".into(),
             },
         })
     }
@@ -70,6 +75,7 @@ impl FieldFormat {
             FieldFormat::GeoTiff => "tif",
             FieldFormat::AsciiGrid => "asc",
             FieldFormat::NetCdf => "nc",
+            FieldFormat::GeoJson => "geojson",
         }
     }
 }
@@ -123,6 +129,7 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<Field, FieldError> {
     let format = FieldFormat::detect(&bytes, Some(name))?;
     match format {
         FieldFormat::NetCdf => super::netcdf::read_netcdf(&bytes, name, opts),
+        FieldFormat::GeoJson => geojson_labels(&bytes, name, opts),
         FieldFormat::GeoTiff | FieldFormat::AsciiGrid => {
             check_raster_header(&bytes, format, name, opts.max_cells)?;
             let (raster, file_crs) = match format {
@@ -151,6 +158,7 @@ pub fn load_bytes(
     let name = filename.unwrap_or("upload");
     match format {
         FieldFormat::NetCdf => super::netcdf::read_netcdf(bytes, name, opts),
+        FieldFormat::GeoJson => geojson_labels(bytes, name, opts),
         FieldFormat::AsciiGrid => {
             check_raster_header(bytes, format, name, opts.max_cells)?;
             let text = std::str::from_utf8(bytes).map_err(|_| FieldError::Format {
@@ -206,6 +214,43 @@ fn single_step(
     raster.crs = crs.crs();
     let time = opts.time.as_deref().map(parse_time).transpose()?;
     Field::new(opts.kind, crs, opts.units.clone(), vec![FieldStep { time, raster }])
+}
+
+/// Cells along the longer side of a label field rasterized from GeoJSON polygons.
+pub const GEOJSON_GRID_SIDE: usize = 1024;
+
+/// A label field from GeoJSON polygons: the integer property `opts.variable` (default
+/// `class`) rasterized in the file's CRS (or `opts.crs`) over the polygons' extent, the longer
+/// side in [`GEOJSON_GRID_SIDE`] cells.
+fn geojson_labels(bytes: &[u8], name: &str, opts: &LoadOptions) -> Result<Field, FieldError> {
+    let format = |message: String| FieldError::Format { context: name.to_string(), message };
+    if opts.kind != FieldKind::Label {
+        return Err(format("GeoJSON polygons make label layers: give kind=label".into()));
+    }
+    let text = std::str::from_utf8(bytes).map_err(|_| format("not GeoJSON (the file is not UTF-8 text)".into()))?;
+    let path = Path::new(name);
+    let vector = |e: gis::VectorError| {
+        let message = e.to_string();
+        format(message.strip_prefix(&format!("{name}: ")).unwrap_or(&message).to_string())
+    };
+    let crs = match &opts.crs {
+        Some(c) => c.clone(),
+        None => gis::vector::geojson_crs(path, text).map_err(vector)?,
+    };
+    // Read once about (0, 0) for the extent, then in a frame about its centre.
+    let probe = gis::LocalFrame::new(crs.crs(), 0.0, 0.0)?;
+    let features = gis::vector::read_geojson(path, text, Some(&crs), gis::SceneTarget { crs: &crs, frame: &probe })
+        .map_err(vector)?;
+    let (lo, hi) = gis::vector::bounds(&features).ok_or_else(|| format("has no polygons".into()))?;
+    let (a, b) = (probe.to_crs(lo[0], lo[1]), probe.to_crs(hi[0], hi[1]));
+    let frame = gis::LocalFrame::new(crs.crs(), 0.5 * (a.0 + b.0), 0.5 * (a.1 + b.1))?;
+    let features = gis::vector::read_geojson(path, text, Some(&crs), gis::SceneTarget { crs: &crs, frame: &frame })
+        .map_err(vector)?;
+    let (lo, hi) = gis::vector::bounds(&features).ok_or_else(|| format("has no polygons".into()))?;
+    let cell = (hi[0] - lo[0]).max(hi[1] - lo[1]) / GEOJSON_GRID_SIDE as f64;
+    let property = opts.variable.as_deref().unwrap_or("class");
+    let raster = gis::vector::rasterize_labels(&features, property, cell, lo, hi, &frame, path).map_err(vector)?;
+    single_step(raster, Ok(Some(crs)), opts)
 }
 
 /// The full CRS definition of a GeoTIFF from its GeoKeys.
@@ -270,7 +315,7 @@ fn check_raster_header(bytes: &[u8], format: FieldFormat, name: &str, max_cells:
             let (w, h) = gis::ascii_grid::ascii_grid_size(Path::new(name), text)?;
             (w, h, None)
         }
-        FieldFormat::NetCdf => return Ok(()),
+        FieldFormat::NetCdf | FieldFormat::GeoJson => return Ok(()),
     };
     let cells = w.saturating_mul(h);
     if cells > max_cells {

@@ -35,52 +35,80 @@ pub const FOOT: f64 = 0.3048;
 /// US survey foot in metres (EPSG unit 9003).
 pub const US_SURVEY_FOOT: f64 = 1200.0 / 3937.0;
 
-/// EPSG codes of geographic 2D CRSs the crate knows (datum differences are irrelevant for a
-/// local frame, which always uses the WGS 84 ellipsoid).
-const GEOGRAPHIC_EPSG: &[u32] = &[
-    4326, // WGS 84
-    4269, // NAD83
-    4258, // ETRS89
-    4267, // NAD27
-    4283, // GDA94
-    7844, // GDA2020
-    4617, // NAD83(CSRS)
-    6318, // NAD83(2011)
-    4674, // SIRGAS 2000
-    4322, // WGS 72
-    4277, // OSGB36
-    4230, // ED50
-    4612, // JGD2000
-    6668, // JGD2011
-    4490, // CGCS2000
-    4167, // NZGD2000
-];
+/// One EPSG code of the maintained table (the `crs-definitions` crate, generated from the
+/// EPSG database via PROJ): the [`Crs`] it is, its PROJ string and its EPSG name.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpsgEntry {
+    /// Geographic or projected, with the code and the linear unit.
+    pub crs: Crs,
+    /// The PROJ.4 definition (datum shift as `+towgs84`, `+datum` or `+nadgrids`).
+    pub proj: &'static str,
+    /// The EPSG name, e.g. `CH1903+ / LV95`.
+    pub name: &'static str,
+}
 
-/// Ranges of EPSG codes of projected CRSs in metres the crate knows.
-const PROJECTED_METRE_EPSG: &[(u32, u32)] = &[
-    (32601, 32660), // WGS 84 / UTM zones 1N–60N
-    (32701, 32760), // WGS 84 / UTM zones 1S–60S
-    (26901, 26923), // NAD83 / UTM zones 1N–23N
-    (26701, 26722), // NAD27 / UTM zones 1N–22N
-    (25828, 25838), // ETRS89 / UTM zones 28N–38N
-    (23028, 23038), // ED50 / UTM zones 28N–38N
-    (28348, 28358), // GDA94 / MGA zones 48–58
-    (7846, 7859),   // GDA2020 / MGA zones 46–59
-    (5070, 5070),   // NAD83 / Conus Albers
-    (6350, 6350),   // NAD83(2011) / Conus Albers
-    (3035, 3035),   // ETRS89-extended / LAEA Europe
-    (3034, 3034),   // ETRS89-extended / LCC Europe
-    (27700, 27700), // OSGB36 / British National Grid
-    (2056, 2056),   // CH1903+ / LV95
-    (21781, 21781), // CH1903 / LV03
-    (28992, 28992), // Amersfoort / RD New
-    (2154, 2154),   // RGF93 / Lambert-93
-    (31467, 31467), // DHDN / 3-degree Gauss-Kruger zone 3
-    (3006, 3006),   // SWEREF99 TM
-    (3067, 3067),   // ETRS89 / TM35FIN
-    (2193, 2193),   // NZGD2000 / New Zealand Transverse Mercator
-    (3577, 3577),   // GDA94 / Australian Albers
-];
+/// The table entry of an EPSG code; `None` for codes the table does not hold and for CRSs
+/// that are neither geographic 2D nor projected (geocentric, vertical).
+pub fn epsg_entry(code: u32) -> Option<EpsgEntry> {
+    let def = crs_definitions::from_code(u16::try_from(code).ok()?)?;
+    let proj = def.proj4;
+    let term = |key: &str| proj.split_whitespace().find_map(|t| t.strip_prefix(key));
+    let crs = match term("+proj=")? {
+        "longlat" | "latlong" | "lonlat" | "latlon" => Crs::Geographic { epsg: Some(code) },
+        "geocent" => return None,
+        _ => {
+            let unit_to_metre = match (term("+units="), term("+to_meter=")) {
+                (_, Some(f)) => f.parse().ok().filter(|f: &f64| f.is_finite() && *f > 0.0)?,
+                (Some("m") | None, None) => 1.0,
+                (Some("ft"), None) => FOOT,
+                (Some("us-ft"), None) => US_SURVEY_FOOT,
+                (Some("km"), None) => 1000.0,
+                (Some(_), None) => return None,
+            };
+            Crs::Projected { epsg: Some(code), unit_to_metre }
+        }
+    };
+    // The WKT starts `PROJCS["name",…` or `GEOGCS["name",…`.
+    let name = def.wkt.split('"').nth(1).unwrap_or("");
+    Some(EpsgEntry { crs, proj, name })
+}
+
+/// Squeezes a CRS name for comparison: lower-case letters and digits only, with 4-digit years
+/// `19xx` shortened to `xx`, so that the ESRI `OSGB_1936_British_National_Grid` and the EPSG
+/// `OSGB 1936 / British National Grid` compare equal.
+fn squeeze_name(name: &str) -> String {
+    let mut out = String::new();
+    for part in name.split(|c: char| !c.is_ascii_alphanumeric()).filter(|p| !p.is_empty()) {
+        let part = part.to_ascii_lowercase();
+        match part.strip_prefix("19") {
+            Some(yy) if yy.len() == 2 && yy.bytes().all(|b| b.is_ascii_digit()) => out.push_str(yy),
+            _ => out.push_str(&part),
+        }
+    }
+    out
+}
+
+/// The EPSG code whose name matches `name` (after [`squeeze_name`]; ESRI prefixes `GCS_` and
+/// `D_` ignored); `None` when no or more than one code matches. Used for WKT without an
+/// authority, as ESRI `.prj` files and many GeoTIFF citations are.
+pub fn epsg_by_name(name: &str, geographic: bool) -> Option<u32> {
+    let wanted = squeeze_name(name.trim_start_matches("GCS_"));
+    if wanted.is_empty() {
+        return None;
+    }
+    let mut found = None;
+    for code in 2000..=u32::from(u16::MAX) {
+        let Some(entry) = epsg_entry(code) else { continue };
+        if entry.crs.is_geographic() != geographic || squeeze_name(entry.name) != wanted {
+            continue;
+        }
+        if found.is_some() {
+            return None;
+        }
+        found = Some(code);
+    }
+    found
+}
 
 impl Crs {
     /// Whether coordinates are lon/lat degrees.
@@ -96,15 +124,14 @@ impl Crs {
         }
     }
 
-    /// The CRS of an EPSG code from the built-in table, `None` if the code is unknown.
+    /// The CRS of an EPSG code from the table ([`epsg_entry`]), `None` if the code is unknown.
     pub fn from_epsg(code: u32) -> Option<Crs> {
-        if GEOGRAPHIC_EPSG.contains(&code) {
-            Some(Crs::Geographic { epsg: Some(code) })
-        } else if PROJECTED_METRE_EPSG.iter().any(|&(lo, hi)| (lo..=hi).contains(&code)) {
-            Some(Crs::Projected { epsg: Some(code), unit_to_metre: 1.0 })
-        } else {
-            None
-        }
+        epsg_entry(code).map(|e| e.crs)
+    }
+
+    /// The EPSG name of the CRS (e.g. `CH1903+ / LV95`), if it has a code in the table.
+    pub fn name(&self) -> Option<&'static str> {
+        self.epsg().and_then(epsg_entry).map(|e| e.name).filter(|n| !n.is_empty())
     }
 
     /// Interprets OGC WKT (WKT1, ESRI WKT or WKT2), as found in a `.prj` file. Returns `None`
@@ -119,11 +146,21 @@ impl Crs {
 fn crs_of_wkt_node(node: &wkt::Node) -> Option<Crs> {
     match node.keyword.to_ascii_uppercase().as_str() {
         "GEOGCS" | "GEOGCRS" | "GEOGRAPHICCRS" => {
-            let epsg = wkt_epsg(node).or_else(|| is_wgs84(node).then_some(4326));
+            let epsg = wkt_epsg(node)
+                .or_else(|| is_wgs84(node).then_some(4326))
+                .or_else(|| node.arg(0).and_then(|name| epsg_by_name(name, true)));
             Some(Crs::Geographic { epsg })
         }
         "PROJCS" | "PROJCRS" | "PROJECTEDCRS" => {
-            Some(Crs::Projected { epsg: wkt_epsg(node), unit_to_metre: wkt_length_unit(node).unwrap_or(1.0) })
+            let unit_to_metre = wkt_length_unit(node).unwrap_or(1.0);
+            // Without an authority, the EPSG CRS of the same name and unit.
+            let by_name = || {
+                let code = epsg_by_name(node.arg(0)?, false)?;
+                let same_unit = matches!(Crs::from_epsg(code), Some(Crs::Projected { unit_to_metre: u, .. })
+                    if (u - unit_to_metre).abs() < 1e-9 * u);
+                same_unit.then_some(code)
+            };
+            Some(Crs::Projected { epsg: wkt_epsg(node).or_else(by_name), unit_to_metre })
         }
         "COMPD_CS" | "COMPOUNDCRS" | "BOUNDCRS" | "SOURCECRS" => node.nodes().find_map(crs_of_wkt_node),
         _ => None,
@@ -169,35 +206,52 @@ fn wkt_length_unit(node: &wkt::Node) -> Option<f64> {
         .filter(|f| f.is_finite() && *f > 0.0)
 }
 
+/// The EPSG code of a CRS name as users and files write it: `EPSG:2056` (also with the name
+/// in brackets after it, as [`Crs`]'s `Display` writes it), the OGC URNs
+/// `urn:ogc:def:crs:EPSG::2056` and `urn:ogc:def:crs:OGC:1.3:CRS84` (WGS 84, as GeoJSON's
+/// `crs` member uses them). `Err` says what was expected.
+pub fn parse_epsg_code(text: &str) -> Result<u32, &'static str> {
+    let text = text.trim();
+    let text = text.split_once('(').map_or(text, |(code, _)| code).trim();
+    let lower = text.to_ascii_lowercase();
+    if matches!(lower.as_str(), "crs84" | "ogc:crs84" | "urn:ogc:def:crs:ogc:1.3:crs84" | "urn:ogc:def:crs:ogc::crs84")
+    {
+        return Ok(4326);
+    }
+    let code = if let Some(rest) = lower.strip_prefix("urn:ogc:def:crs:epsg:") {
+        // `urn:ogc:def:crs:EPSG::n` or with a version: `urn:ogc:def:crs:EPSG:9.8:n`.
+        rest.rsplit(':').next().unwrap_or("")
+    } else {
+        match lower.split_once(':') {
+            Some(("epsg", code)) => code,
+            Some(_) => return Err("only EPSG codes are supported, e.g. EPSG:4326"),
+            None => return Err("expected EPSG:<code>, e.g. EPSG:4326"),
+        }
+    };
+    code.trim().parse().map_err(|_| "the EPSG code is not a number")
+}
+
 impl FromStr for Crs {
     type Err = GisError;
 
-    /// Parses `EPSG:<code>` (case-insensitive) for the codes in the built-in table.
+    /// Parses an EPSG code as [`parse_epsg_code`] reads it, for the codes of the EPSG table.
     fn from_str(s: &str) -> Result<Crs, GisError> {
         let unknown = |reason: &str| GisError::UnknownCrs { crs: s.to_string(), reason: reason.to_string() };
-        let trimmed = s.trim();
-        let (authority, code) =
-            trimmed.split_once(':').ok_or_else(|| unknown("expected EPSG:<code>, e.g. EPSG:4326"))?;
-        if !authority.trim().eq_ignore_ascii_case("EPSG") {
-            return Err(unknown("only EPSG codes are supported, e.g. EPSG:4326"));
-        }
-        let code: u32 = code.trim().parse().map_err(|_| unknown("the EPSG code is not a number"))?;
+        let code = parse_epsg_code(s).map_err(unknown)?;
         Crs::from_epsg(code).ok_or_else(|| {
-            unknown(
-                "EPSG code not in the built-in table (geographic: 4326, 4269, 4258, …; projected \
-                 in metres: UTM 326xx/327xx, NAD83 UTM 269xx, ETRS89 UTM 258xx, 5070, 3035, …)",
-            )
+            unknown("no geographic or projected CRS of that code in the EPSG table; give a PROJ string instead")
         })
     }
 }
 
 impl fmt::Display for Crs {
-    /// `EPSG:<code>` where known, otherwise a short description.
+    /// `EPSG:<code> (<name>)` where known, otherwise a short description.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Crs::Geographic { epsg: Some(code) } | Crs::Projected { epsg: Some(code), .. } => {
-                write!(f, "EPSG:{code}")
-            }
+            Crs::Geographic { epsg: Some(code) } | Crs::Projected { epsg: Some(code), .. } => match self.name() {
+                Some(name) => write!(f, "EPSG:{code} ({name})"),
+                None => write!(f, "EPSG:{code}"),
+            },
             Crs::Geographic { epsg: None } => write!(f, "geographic (no EPSG code)"),
             Crs::Projected { epsg: None, unit_to_metre } => {
                 write!(f, "projected (no EPSG code, unit {unit_to_metre} m)")
@@ -354,10 +408,24 @@ mod tests {
         assert_eq!("EPSG:32613".parse::<Crs>().unwrap(), Crs::Projected { epsg: Some(32613), unit_to_metre: 1.0 });
         assert!("EPSG:4269".parse::<Crs>().unwrap().is_geographic());
         assert!("EPSG:4258".parse::<Crs>().unwrap().is_geographic());
-        for bad in ["EPSG:3857", "EPSG:abc", "4326", "ESRI:102003", ""] {
+        assert_eq!("EPSG:3857".parse::<Crs>().unwrap(), Crs::Projected { epsg: Some(3857), unit_to_metre: 1.0 });
+        assert_eq!("urn:ogc:def:crs:EPSG:9.8.15:2056".parse::<Crs>().unwrap().epsg(), Some(2056));
+        for bad in ["EPSG:99999", "EPSG:4978", "EPSG:abc", "4326", "ESRI:102003", ""] {
             let err = bad.parse::<Crs>().unwrap_err();
             assert!(matches!(err, GisError::UnknownCrs { .. }), "{bad}: {err}");
         }
+    }
+
+    #[test]
+    fn table_units_and_names() {
+        let e = epsg_entry(2227).unwrap();
+        assert_eq!(e.crs, Crs::Projected { epsg: Some(2227), unit_to_metre: US_SURVEY_FOOT });
+        assert_eq!(epsg_entry(2056).unwrap().name, "CH1903+ / LV95");
+        assert_eq!(Crs::from_epsg(4326).unwrap().name(), Some("WGS 84"));
+        assert_eq!(squeeze_name("RGF_1993_Lambert_93"), squeeze_name("RGF93 / Lambert-93"));
+        assert_eq!(epsg_by_name("CH1903+_LV95", false), Some(2056));
+        assert_eq!(epsg_by_name("GCS_OSGB_1936", true), Some(4277));
+        assert_eq!(epsg_by_name("no such CRS", false), None);
     }
 
     #[test]
@@ -379,7 +447,8 @@ mod tests {
         let wkt = r#"PROJCS["NAD83 / UTM zone 12N",GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101,AUTHORITY["EPSG","7019"]],AUTHORITY["EPSG","6269"]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4269"]],PROJECTION["Transverse_Mercator"],PARAMETER["central_meridian",-111],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AUTHORITY["EPSG","26912"]]"#;
         assert_eq!(Crs::from_wkt(wkt), Some(Crs::Projected { epsg: Some(26912), unit_to_metre: 1.0 }));
         let nad83 = r#"GEOGCS["NAD83",DATUM["North_American_Datum_1983",SPHEROID["GRS 1980",6378137,298.257222101]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]]"#;
-        assert_eq!(Crs::from_wkt(nad83), Some(Crs::Geographic { epsg: None }));
+        // Without an authority the EPSG name "NAD83" identifies EPSG:4269.
+        assert_eq!(Crs::from_wkt(nad83), Some(Crs::Geographic { epsg: Some(4269) }));
     }
 
     #[test]

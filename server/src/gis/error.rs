@@ -121,6 +121,14 @@ pub enum GisError {
         /// Why it was rejected.
         reason: String,
     },
+    /// A raster whose CRS cannot be brought into the scene's.
+    #[error("{}: {source}", path.display())]
+    Reproject {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: super::reproject::ReprojectError,
+    },
     /// A raster without CRS cannot be placed in a metric frame.
     #[error("raster has no coordinate reference system: set the CRS, e.g. `crs = \"EPSG:4326\"` in the scene file")]
     UnspecifiedCrs,

@@ -481,6 +481,8 @@ pub struct GeoKeyValues {
     pub shorts: Vec<(u16, u16)>,
     /// Keys stored in GeoDoubleParams, in file order.
     pub doubles: Vec<(u16, Vec<f64>)>,
+    /// Keys stored in GeoAsciiParams (citations), without the `|` terminator, in file order.
+    pub ascii: Vec<(u16, String)>,
 }
 
 impl GeoKeyValues {
@@ -498,6 +500,28 @@ impl GeoKeyValues {
     pub fn doubles(&self, id: u16) -> Option<&[f64]> {
         self.doubles.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_slice())
     }
+
+    /// The ASCII value of a key (e.g. a citation).
+    pub fn ascii(&self, id: u16) -> Option<&str> {
+        self.ascii.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str())
+    }
+}
+
+/// The GeoKeys stored in GeoAsciiParams: entries of location 34737 point at `count` bytes
+/// from `offset`, ended by `|`. Entries out of range are skipped.
+fn ascii_keys(dir: &[u16], ascii: &str) -> Vec<(u16, String)> {
+    let count = dir.get(3).map_or(0, |&c| usize::from(c));
+    dir.get(4..)
+        .unwrap_or_default()
+        .chunks_exact(4)
+        .take(count)
+        .filter(|e| e[1] == 34737)
+        .filter_map(|e| {
+            let (start, len) = (usize::from(e[3]), usize::from(e[2]));
+            let text = ascii.get(start..start.checked_add(len)?)?;
+            Some((e[0], text.trim_end_matches(['|', '\0']).to_string()))
+        })
+        .collect()
 }
 
 /// Reads only the GeoKeys of a GeoTIFF (empty when the file has no GeoKeyDirectory).
@@ -518,7 +542,11 @@ pub fn read_geokeys(path: &Path) -> Result<GeoKeyValues, GisError> {
     };
     let keys = GeoKeys::parse(&dir, &params)
         .map_err(|reason| GisError::BadGeoreferencing { path: path.to_path_buf(), reason })?;
-    let mut values = GeoKeyValues::default();
+    let ascii = match decoder.find_tag(Tag::GeoAsciiParamsTag).map_err(tiff_err)? {
+        Some(v) => v.into_string().map_err(tiff_err)?,
+        None => String::new(),
+    };
+    let mut values = GeoKeyValues { ascii: ascii_keys(&dir, &ascii), ..GeoKeyValues::default() };
     for (id, v) in keys.keys {
         match v {
             KeyValue::Short(s) => values.shorts.push((id, s)),

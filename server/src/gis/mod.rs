@@ -1,5 +1,6 @@
-//! GIS input: georeferenced rasters (GeoTIFF, ESRI ASCII grid), their CRS and the local
-//! metric frame the scene lives in.
+//! GIS input: georeferenced rasters (GeoTIFF, ESRI ASCII grid) and vector plans (GeoJSON,
+//! CSV), their CRS, reprojection into the scene's CRS and the local metric frame the scene
+//! lives in.
 
 pub mod ascii_grid;
 pub mod crs;
@@ -8,6 +9,8 @@ pub mod frame;
 pub mod geotiff;
 pub mod raster;
 pub mod reproject;
+pub mod vector;
+pub mod warp;
 
 pub use ascii_grid::read_ascii_grid;
 pub use crs::Crs;
@@ -16,3 +19,5 @@ pub use frame::LocalFrame;
 pub use geotiff::{GeoKeyValues, read_geokeys, read_geotiff, write_geotiff_f32, write_geotiff_u8};
 pub use raster::{Extent, GeoTransform, MAX_CELLS, Raster, load_raster};
 pub use reproject::{CrsDefinition, ReprojectError, Transformer};
+pub use vector::{SceneFeature, SceneTarget, VectorError, read_vector};
+pub use warp::{file_definition, load_raster_in, warp_nearest};

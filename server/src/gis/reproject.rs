@@ -4,17 +4,19 @@
 //! one CRS to another a full definition is needed. A [`CrsDefinition`] is a PROJ.4 string plus
 //! the [`Crs`] it describes, built from
 //!
-//! - an EPSG code ([`CrsDefinition::from_epsg`]): the geographic CRSs on the WGS 84 or GRS 80
-//!   ellipsoids (4326, 4269, 4258, 4283, 4617, 6318, 4674, 7844, 4167, 4612, 6668, 4490),
-//!   WGS 84 / UTM zones N and S (326xx, 327xx), NAD83 / UTM (269xx), ETRS89 / UTM (258xx),
-//!   NAD83 / Conus Albers (5070, 6350), ETRS89 / LAEA Europe (3035);
-//! - GeoTIFF GeoKeys ([`CrsDefinition::from_geokeys`]), including user-defined CRSs that
-//!   describe a geographic CRS or a UTM / Transverse Mercator projection on a given ellipsoid;
+//! - an EPSG code ([`CrsDefinition::from_epsg`]): any geographic or projected CRS of the EPSG
+//!   table ([`crate::gis::crs::epsg_entry`]);
+//! - WKT ([`CrsDefinition::from_wkt`]) naming an EPSG CRS by authority or by name;
+//! - GeoTIFF GeoKeys ([`CrsDefinition::from_geokeys`]): an EPSG code, a citation naming an EPSG
+//!   CRS, or user-defined CRSs that describe a geographic CRS or a UTM / Transverse Mercator
+//!   projection on a given ellipsoid;
 //! - a PROJ.4 string given by the user ([`CrsDefinition::from_proj_string`]).
 //!
-//! Datums whose shift to WGS 84 is below a metre (NAD83, ETRS89, GDA94, …) are taken as WGS 84
-//! (`+towgs84=0,0,0`); datums that need grids or large shifts (NAD27, ED50, OSGB36 …) are not
-//! supported and give a [`ReprojectError::Unsupported`] naming the code.
+//! Datum shifts are PROJ's for these definitions: the table's `+towgs84` Helmert parameters
+//! (3 or 7), the built-in `+datum` parameters of `proj4rs` (OSGB36, potsdam …), none for datums
+//! within a metre of WGS 84 (NAD83, ETRS89, GDA94 …). Helmert parameters are accurate to a few
+//! metres at best (a national grid shift such as OSTN15 is better by two orders); definitions
+//! that need a grid file (NAD27, NZGD49) give [`ReprojectError::Unsupported`] naming the grid.
 
 use proj4rs::proj::Proj;
 
@@ -35,6 +37,24 @@ pub enum ReprojectError {
     /// Nothing is known about the CRS (no GeoKeys, no `.prj`, no `crs` given).
     #[error("the data has no coordinate reference system: give one (e.g. crs=EPSG:4326) or assume the scene's")]
     Missing,
+    /// A raster could not be resampled from one CRS to another.
+    #[error("cannot resample from {from} to {to}: {reason}")]
+    Resample {
+        /// Source CRS label.
+        from: String,
+        /// Target CRS label.
+        to: String,
+        /// Why.
+        reason: String,
+    },
+    /// Data that lies entirely outside the scene.
+    #[error("{what} does not overlap the scene (in {crs})")]
+    NoOverlap {
+        /// What does not overlap.
+        what: String,
+        /// The scene CRS label.
+        crs: String,
+    },
     /// `proj4rs` rejected a definition.
     #[error("invalid CRS definition \"{}\": {message}", crate::echo::echo(.definition))]
     Invalid {
@@ -54,15 +74,13 @@ pub struct CrsDefinition {
 
 /// WGS 84 as a PROJ.4 string.
 const WGS84_LONGLAT: &str = "+proj=longlat +datum=WGS84 +no_defs";
-/// PROJ.4 ellipsoid and datum terms for GRS 80 datums treated as WGS 84.
-const GRS80_AS_WGS84: &str = "+ellps=GRS80 +towgs84=0,0,0,0,0,0,0";
-
-/// EPSG geographic CRSs on GRS 80 whose datum is within a metre or so of WGS 84.
-const GRS80_GEOGRAPHIC: &[u32] = &[4269, 4258, 4283, 4617, 6318, 4674, 7844, 4167, 4612, 6668, 4490];
 
 /// GeoKey ids (GeoTIFF 1.0) read here.
 mod key {
     pub const MODEL_TYPE: u16 = 1024;
+    pub const GT_CITATION: u16 = 1026;
+    pub const GEOG_CITATION: u16 = 2049;
+    pub const PCS_CITATION: u16 = 3073;
     pub const GEOGRAPHIC_TYPE: u16 = 2048;
     pub const GEODETIC_DATUM: u16 = 2050;
     pub const ELLIPSOID: u16 = 2056;
@@ -109,7 +127,8 @@ impl CrsDefinition {
         self.crs.is_geographic()
     }
 
-    /// A short label: `EPSG:<code>` where known, else the PROJ.4 string.
+    /// A short identifier: `EPSG:<code>` where known, else the PROJ.4 string (metadata keep
+    /// it; messages use `Display`, which adds the EPSG name).
     pub fn label(&self) -> String {
         match self.crs.epsg() {
             Some(code) => format!("EPSG:{code}"),
@@ -122,39 +141,27 @@ impl CrsDefinition {
         CrsDefinition { crs: Crs::Geographic { epsg: Some(4326) }, proj: WGS84_LONGLAT.to_string() }
     }
 
-    /// The definition of an EPSG code from the supported families (see the module docs).
+    /// The definition of an EPSG code from the EPSG table ([`crate::gis::crs::epsg_entry`]),
+    /// with its datum shift to WGS 84 as PROJ gives it (`+towgs84`, a `+datum` with built-in
+    /// parameters or none). Codes whose shift needs a grid file (NAD27, NZGD49's NTv2 grid …)
+    /// are refused: without the grid the error would be up to hundreds of metres.
     pub fn from_epsg(code: u32) -> Result<CrsDefinition, ReprojectError> {
-        let unsupported =
-            |reason: &str| ReprojectError::Unsupported { crs: format!("EPSG:{code}"), reason: reason.into() };
-        let geographic = |proj: String| CrsDefinition { crs: Crs::Geographic { epsg: Some(code) }, proj };
-        let projected =
-            |proj: String| CrsDefinition { crs: Crs::Projected { epsg: Some(code), unit_to_metre: 1.0 }, proj };
-        let def = match code {
-            4326 => geographic(WGS84_LONGLAT.to_string()),
-            c if GRS80_GEOGRAPHIC.contains(&c) => geographic(format!("+proj=longlat {GRS80_AS_WGS84} +no_defs")),
-            32601..=32660 => projected(format!("+proj=utm +zone={} +datum=WGS84 +units=m +no_defs", code - 32600)),
-            32701..=32760 => {
-                projected(format!("+proj=utm +zone={} +south +datum=WGS84 +units=m +no_defs", code - 32700))
-            }
-            26901..=26923 => projected(format!("+proj=utm +zone={} {GRS80_AS_WGS84} +units=m +no_defs", code - 26900)),
-            25828..=25838 => projected(format!("+proj=utm +zone={} {GRS80_AS_WGS84} +units=m +no_defs", code - 25800)),
-            5070 | 6350 => projected(format!(
-                "+proj=aea +lat_0=23 +lon_0=-96 +lat_1=29.5 +lat_2=45.5 +x_0=0 +y_0=0 {GRS80_AS_WGS84} +units=m +no_defs"
-            )),
-            3035 => projected(format!(
-                "+proj=laea +lat_0=52 +lon_0=10 +x_0=4321000 +y_0=3210000 {GRS80_AS_WGS84} +units=m +no_defs"
-            )),
-            4267 | 4230 | 4277 | 4322 | 26701..=26722 | 23028..=23038 | 27700 => {
-                return Err(unsupported("its datum needs a shift to WGS 84 that is not built in"));
-            }
-            _ => {
-                return Err(unsupported(
-                    "not in the built-in table (geographic 4326, 4269, 4258, …; WGS 84 UTM 326xx/327xx, \
-                     NAD83 UTM 269xx, ETRS89 UTM 258xx, 5070, 3035)",
-                ));
-            }
-        };
-        def.validated()
+        let label = || Crs::from_epsg(code).map_or_else(|| format!("EPSG:{code}"), |c| c.to_string());
+        let unsupported = |reason: String| ReprojectError::Unsupported { crs: label(), reason };
+        let entry = super::crs::epsg_entry(code).ok_or_else(|| {
+            unsupported(
+                "no geographic or projected CRS of that code in the EPSG table; give a PROJ string \
+                 (+proj=…) instead"
+                    .into(),
+            )
+        })?;
+        if let Some(grids) = needs_grid(entry.proj) {
+            return Err(unsupported(format!(
+                "its shift to WGS 84 needs the grid file(s) {grids}, which are not available; give a PROJ \
+                 string with +towgs84=… (accurate to metres) instead"
+            )));
+        }
+        CrsDefinition { crs: entry.crs, proj: entry.proj.to_string() }.validated()
     }
 
     /// The definition of a [`Crs`]: from its EPSG code. A CRS without code cannot be
@@ -187,20 +194,23 @@ impl CrsDefinition {
         Ok(CrsDefinition { crs, proj: text.to_string() })
     }
 
-    /// Parses what a user may give as a CRS: `EPSG:<code>` or a PROJ.4 string starting with `+`.
+    /// Parses what a user may give as a CRS: an EPSG code as
+    /// [`crate::gis::crs::parse_epsg_code`] reads it, a PROJ.4 string starting with `+`, or
+    /// WKT (as in a `.prj` file) that names an EPSG CRS.
+    ///
+    /// WKT without an EPSG authority is matched by its name against the EPSG table.
     pub fn parse(text: &str) -> Result<CrsDefinition, ReprojectError> {
         let trimmed = text.trim();
         if trimmed.starts_with('+') {
             return CrsDefinition::from_proj_string(trimmed);
         }
-        let code = trimmed
-            .split_once(':')
-            .filter(|(auth, _)| auth.trim().eq_ignore_ascii_case("EPSG"))
-            .and_then(|(_, code)| code.trim().parse::<u32>().ok())
-            .ok_or_else(|| ReprojectError::Unsupported {
-                crs: trimmed.to_string(),
-                reason: "expected EPSG:<code> or a PROJ.4 string starting with '+'".into(),
-            })?;
+        if trimmed.contains('[') {
+            return CrsDefinition::from_wkt(trimmed);
+        }
+        let code = super::crs::parse_epsg_code(trimmed).map_err(|reason| ReprojectError::Unsupported {
+            crs: trimmed.to_string(),
+            reason: format!("{reason}, or a PROJ string starting with '+'"),
+        })?;
         CrsDefinition::from_epsg(code)
     }
 
@@ -220,7 +230,7 @@ impl CrsDefinition {
         let unsupported = |reason: String| ReprojectError::Unsupported { crs: "user-defined GeoKeys".into(), reason };
         match model {
             MODEL_GEOGRAPHIC => {
-                if let Some(code) = code(key::GEOGRAPHIC_TYPE) {
+                if let Some(code) = code(key::GEOGRAPHIC_TYPE).or_else(|| cited_epsg(keys, true)) {
                     return CrsDefinition::from_epsg(code).map(Some);
                 }
                 let datum = geokey_datum(keys).map_err(unsupported)?;
@@ -228,7 +238,7 @@ impl CrsDefinition {
                 Some(CrsDefinition { crs: Crs::Geographic { epsg: None }, proj }.validated()).transpose()
             }
             MODEL_PROJECTED => {
-                if let Some(code) = code(key::PROJECTED_CS_TYPE) {
+                if let Some(code) = code(key::PROJECTED_CS_TYPE).or_else(|| cited_epsg(keys, false)) {
                     return CrsDefinition::from_epsg(code).map(Some);
                 }
                 let datum = geokey_datum(keys).map_err(unsupported)?;
@@ -258,6 +268,16 @@ impl CrsDefinition {
         }
     }
 
+    /// The definition of WKT (WKT1, ESRI or WKT2, e.g. a `.prj` file): the EPSG CRS it names
+    /// by authority or, lacking one, by name ([`Crs::from_wkt`]).
+    pub fn from_wkt(text: &str) -> Result<CrsDefinition, ReprojectError> {
+        let crs = Crs::from_wkt(text).ok_or_else(|| ReprojectError::Unsupported {
+            crs: text.chars().take(60).collect(),
+            reason: "not WKT of a geographic or projected CRS".into(),
+        })?;
+        CrsDefinition::from_crs(&crs)
+    }
+
     /// Checks that `proj4rs` accepts the definition.
     fn validated(self) -> Result<CrsDefinition, ReprojectError> {
         parse_proj(&self.proj)?;
@@ -265,10 +285,44 @@ impl CrsDefinition {
     }
 }
 
+/// The grid files a PROJ string's datum shift needs, `None` if it needs none (`@null` and
+/// Helmert parameters need none; NAD27 stands for the NADCON/NTv2 grids).
+fn needs_grid(proj: &str) -> Option<String> {
+    proj.split_whitespace().find_map(|t| match t {
+        "+datum=NAD27" => Some("NADCON/NTv2 (NAD27)".to_string()),
+        t => t.strip_prefix("+nadgrids=").filter(|g| *g != "@null").map(str::to_string),
+    })
+}
+
+impl std::fmt::Display for CrsDefinition {
+    /// `EPSG:<code> (<name>)` where known, else the PROJ.4 string.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.crs.epsg() {
+            Some(_) => write!(f, "{}", self.crs),
+            None => f.write_str(&self.proj),
+        }
+    }
+}
+
 /// `proj4rs` parse with its error mapped.
 fn parse_proj(text: &str) -> Result<Proj, ReprojectError> {
     Proj::from_proj_string(text)
         .map_err(|e| ReprojectError::Invalid { definition: text.to_string(), message: e.to_string() })
+}
+
+/// The EPSG code a user-defined CRS's citation names: WKT in it (GDAL writes
+/// `ESRI PE String = PROJCS[…]`) or the plain name of an EPSG CRS (`PCSCitationGeoKey`,
+/// `GeogCitationGeoKey`, else `GTCitationGeoKey`).
+fn cited_epsg(keys: &GeoKeyValues, geographic: bool) -> Option<u32> {
+    let own = if geographic { key::GEOG_CITATION } else { key::PCS_CITATION };
+    [own, key::GT_CITATION].into_iter().filter_map(|id| keys.ascii(id)).find_map(|citation| match citation.find('[') {
+        Some(_) => {
+            let wkt = citation.find(|c: char| c.is_ascii_uppercase()).map_or(citation, |i| &citation[i..]);
+            let wkt = wkt.split_once(" = ").map_or(wkt, |(_, w)| w);
+            Crs::from_wkt(wkt).filter(|c| c.is_geographic() == geographic)?.epsg()
+        }
+        None => super::crs::epsg_by_name(citation, geographic),
+    })
 }
 
 /// The `+ellps`/`+a +rf`/`+a +b` and `+towgs84` terms of user-defined GeoKeys.
@@ -380,18 +434,27 @@ mod tests {
     use super::*;
 
     fn keys(shorts: &[(u16, u16)], doubles: &[(u16, &[f64])]) -> GeoKeyValues {
-        GeoKeyValues { shorts: shorts.to_vec(), doubles: doubles.iter().map(|(k, v)| (*k, v.to_vec())).collect() }
+        GeoKeyValues {
+            shorts: shorts.to_vec(),
+            doubles: doubles.iter().map(|(k, v)| (*k, v.to_vec())).collect(),
+            ascii: Vec::new(),
+        }
     }
 
     #[test]
     fn epsg_families() {
         assert!(CrsDefinition::from_epsg(4326).unwrap().is_geographic());
-        assert!(CrsDefinition::from_epsg(4269).unwrap().proj_string().contains("GRS80"));
+        assert!(CrsDefinition::from_epsg(4269).unwrap().proj_string().contains("+datum=NAD83"));
+        assert!(CrsDefinition::from_epsg(2056).unwrap().proj_string().contains("+towgs84=674.374"));
         assert!(CrsDefinition::from_epsg(32613).unwrap().proj_string().contains("+zone=13 "));
         assert!(CrsDefinition::from_epsg(32733).unwrap().proj_string().contains("+south"));
         assert!(CrsDefinition::from_epsg(26912).unwrap().proj_string().contains("+zone=12 "));
         assert_eq!(CrsDefinition::from_epsg(32612).unwrap().label(), "EPSG:32612");
-        for bad in [4267, 27700, 3857, 0] {
+        assert_eq!(CrsDefinition::from_epsg(32612).unwrap().to_string(), "EPSG:32612 (WGS 84 / UTM zone 12N)");
+        assert!(needs_grid("+proj=utm +zone=12 +datum=NAD27").is_some());
+        assert_eq!(needs_grid("+proj=merc +nadgrids=@null +no_defs"), None);
+        assert_eq!(needs_grid("+proj=tmerc +nadgrids=nzgd2kgrid0005.gsb").as_deref(), Some("nzgd2kgrid0005.gsb"));
+        for bad in [4267, 26712, 4978, 0, 70000] {
             assert!(matches!(CrsDefinition::from_epsg(bad), Err(ReprojectError::Unsupported { .. })), "{bad}");
         }
         assert_eq!(CrsDefinition::from_crs(&Crs::Unspecified), Err(ReprojectError::Missing));
@@ -448,5 +511,11 @@ mod tests {
         assert_eq!(CrsDefinition::from_geokeys(&keys(&[], &[])), Ok(None));
         let geo = keys(&[(1024, 2), (2048, 4326)], &[]);
         assert_eq!(CrsDefinition::from_geokeys(&geo).unwrap(), Some(CrsDefinition::wgs84()));
+        // User-defined keys whose citation names an EPSG CRS, or holds its (ESRI) WKT.
+        let mut cited = keys(&[(1024, 1), (3072, 32767)], &[]);
+        cited.ascii = vec![(3073, "CH1903+ / LV95".into())];
+        assert_eq!(CrsDefinition::from_geokeys(&cited).unwrap().unwrap().crs().epsg(), Some(2056));
+        cited.ascii = vec![(1026, r#"ESRI PE String = PROJCS["OSGB_1936_British_National_Grid",GEOGCS["GCS_OSGB_1936",DATUM["D_OSGB_1936",SPHEROID["Airy_1830",6377563.396,299.3249646]],PRIMEM["Greenwich",0],UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],UNIT["Meter",1]]"#.into())];
+        assert_eq!(CrsDefinition::from_geokeys(&cited).unwrap().unwrap().crs().epsg(), Some(27700));
     }
 }

@@ -120,18 +120,144 @@ pub struct SpeciesConfig {
     pub hlp_radius: Option<f32>,
 }
 
-/// `[[layers]]`: a named group of plants placed from a land-cover raster.
+/// `[[layers]]`: a named group of plants placed from a land cover by rules and/or from
+/// vector plans.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LayerConfig {
     pub name: String,
-    /// Categorical land-cover raster in the DEM's CRS.
-    pub landcover: PathBuf,
+    /// Categorical land cover: a raster in any CRS with a definition (reprojected to the
+    /// DEM's by nearest neighbour) or GeoJSON polygons rasterized by `landcover_options`.
+    /// Optional when the layer is built only from `plans`.
+    pub landcover: Option<PathBuf>,
+    /// How to read `landcover`.
+    #[serde(default)]
+    pub landcover_options: LandcoverOptions,
     /// Placement seed.
     #[serde(default)]
     pub seed: u64,
     #[serde(default)]
     pub rules: Vec<RuleConfig>,
+    /// Vector plans: planting areas, hedgerows, single plants.
+    #[serde(default)]
+    pub plans: Vec<PlanConfig>,
+}
+
+/// `[layers.landcover_options]`: the land cover's CRS (when the file has none or a wrong one)
+/// and, for GeoJSON polygons, the label property and the rasterization cell size.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LandcoverOptions {
+    /// CRS overriding the file's: `EPSG:<code>`, a PROJ string or WKT.
+    pub crs: Option<String>,
+    /// Polygons: the property holding the integer class.
+    #[serde(default = "default_class_property")]
+    pub property: String,
+    /// Polygons: cell size in metres of the rasterized land cover.
+    #[serde(default = "default_landcover_cell")]
+    pub cell: f64,
+}
+
+impl Default for LandcoverOptions {
+    fn default() -> Self {
+        LandcoverOptions { crs: None, property: default_class_property(), cell: default_landcover_cell() }
+    }
+}
+
+fn default_class_property() -> String {
+    "class".into()
+}
+
+fn default_landcover_cell() -> f64 {
+    1.0
+}
+
+/// What a vector plan holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PlanKind {
+    /// Planting polygons: plants at a density inside each polygon.
+    Areas,
+    /// Lines: plants along each line at a spacing, in one or more rows.
+    Hedgerows,
+    /// Points (GeoJSON or CSV): one plant at each, e.g. a tree inventory.
+    Plants,
+}
+
+/// `[[layers.plans]]`: a vector file (GeoJSON, or CSV for `plants`) placing plants. Each
+/// feature's species comes from its `species_property` (mapped by `species_map`), else
+/// `species`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanConfig {
+    pub kind: PlanKind,
+    /// The vector file, relative to the scene file.
+    pub file: PathBuf,
+    /// CRS overriding the file's (GeoJSON: WGS 84 or its `crs` member; CSV: WGS 84 for
+    /// lon/lat columns, else the DEM's).
+    pub crs: Option<String>,
+    /// Species of features without a species property.
+    pub species: Option<String>,
+    /// Property (CSV: column) naming a feature's species.
+    #[serde(default = "default_species_property")]
+    pub species_property: String,
+    /// Property values → scene species names (e.g. `OAK = "oak"`).
+    #[serde(default)]
+    pub species_map: BTreeMap<String, String>,
+    /// `areas`: plants per hectare where a feature has no `density_property`.
+    pub density: Option<f64>,
+    /// `areas`: property giving a feature's density (plants per hectare).
+    #[serde(default = "default_density_property")]
+    pub density_property: String,
+    /// `areas`: minimum distance between plants of one polygon, metres.
+    #[serde(default)]
+    pub min_spacing: f64,
+    /// Uniform scale range of the model (`plants`: used where a feature gives no size).
+    #[serde(default = "default_scale")]
+    pub scale: [f32; 2],
+    /// `hedgerows`: distance between plants along a row, metres.
+    #[serde(default = "default_hedge_spacing")]
+    pub spacing: f64,
+    /// `hedgerows`: number of parallel rows.
+    #[serde(default = "default_rows")]
+    pub rows: u32,
+    /// `hedgerows`: distance between rows, metres.
+    #[serde(default = "default_row_spacing")]
+    pub row_spacing: f64,
+    /// `plants`: property giving a plant's height in metres (scales the model to it).
+    #[serde(default = "default_height_property")]
+    pub height_property: String,
+    /// `plants`: property giving the crown diameter in metres (used when there is no height).
+    #[serde(default = "default_crown_property")]
+    pub crown_property: String,
+}
+
+fn default_species_property() -> String {
+    "species".into()
+}
+
+fn default_density_property() -> String {
+    "density".into()
+}
+
+fn default_hedge_spacing() -> f64 {
+    1.0
+}
+
+fn default_rows() -> u32 {
+    1
+}
+
+fn default_row_spacing() -> f64 {
+    0.7
+}
+
+fn default_height_property() -> String {
+    "height".into()
+}
+
+fn default_crown_property() -> String {
+    "crown".into()
 }
 
 /// `[[layers.rules]]`: which species grow on which land-cover class, how densely.

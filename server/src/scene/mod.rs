@@ -5,12 +5,13 @@ pub mod camera_params;
 pub mod config;
 pub mod gltf_loader;
 pub mod mesh;
+pub mod plan;
 pub mod plant;
 pub mod procedural;
 pub mod terrain;
 pub mod vegetation;
 
-use crate::gis::{self, GisError};
+use crate::gis::{self, CrsDefinition, GisError, ReprojectError, SceneTarget, VectorError};
 use camera::Camera;
 use config::{SceneConfig, SpeciesConfig};
 use plant::{ModelError, PlantModel};
@@ -30,6 +31,8 @@ pub enum SceneError {
     Gis(#[from] GisError),
     #[error(transparent)]
     Model(#[from] ModelError),
+    #[error(transparent)]
+    Vector(#[from] VectorError),
     #[error("{0}")]
     Invalid(String),
 }
@@ -105,9 +108,16 @@ impl Scene {
 
     /// Builds a scene from a parsed config; relative paths are resolved against `base`.
     pub fn from_config(config: &SceneConfig, base: &Path) -> Result<Scene, SceneError> {
-        let mut dem = gis::load_raster(&base.join(&config.terrain.dem))?;
-        if let Some(crs) = &config.terrain.crs {
-            dem.crs = crs.parse().map_err(|e: GisError| SceneError::Invalid(format!("terrain.crs: {e}")))?;
+        let dem_path = base.join(&config.terrain.dem);
+        let mut dem = gis::load_raster(&dem_path)?;
+        // The DEM's full CRS definition, needed only to bring other data into the scene: a DEM
+        // whose CRS has none still loads (its frame needs only the unit).
+        let scene_crs: Result<CrsDefinition, ReprojectError> = match &config.terrain.crs {
+            Some(text) => Ok(CrsDefinition::parse(text).map_err(|e| SceneError::Invalid(format!("terrain.crs: {e}")))?),
+            None => gis::file_definition(&dem_path, &dem),
+        };
+        if let Ok(def) = &scene_crs {
+            dem.crs = def.crs();
         }
         let terrain = Terrain::new(dem, config.terrain.albedo)?;
 
@@ -129,7 +139,6 @@ impl Scene {
 
         let mut layers = Vec::new();
         for layer in &config.layers {
-            let landcover = gis::load_raster(&base.join(&layer.landcover))?;
             let rules = layer
                 .rules
                 .iter()
@@ -146,7 +155,43 @@ impl Scene {
                     Ok(PlacementRule { class: r.class, species, density_per_ha: r.density, min_spacing: r.min_spacing, scale: r.scale })
                 })
                 .collect::<Result<Vec<_>, SceneError>>()?;
-            let plants = vegetation::place(&terrain, &landcover, &rules, layer.seed, config.max_plants)?;
+            let scene_def = || {
+                scene_crs
+                    .clone()
+                    .map_err(|source| SceneError::Gis(GisError::Reproject { path: dem_path.clone(), source }))
+            };
+            let mut plants = Vec::new();
+            match &layer.landcover {
+                Some(file) => {
+                    let landcover = load_landcover(&base.join(file), layer, &scene_def()?, &terrain)?;
+                    plants = vegetation::place(&terrain, &landcover, &rules, layer.seed, config.max_plants)?;
+                }
+                None if !rules.is_empty() => {
+                    return Err(SceneError::Invalid(format!("layer '{}': rules need a `landcover`", layer.name)));
+                }
+                None if layer.plans.is_empty() => {
+                    return Err(SceneError::Invalid(format!(
+                        "layer '{}': give a `landcover` with rules or `plans`",
+                        layer.name
+                    )));
+                }
+                None => {}
+            }
+            for (i, plan) in layer.plans.iter().enumerate() {
+                let path = base.join(&plan.file);
+                let crs = plan
+                    .crs
+                    .as_deref()
+                    .map(CrsDefinition::parse)
+                    .transpose()
+                    .map_err(|e| SceneError::Invalid(format!("layer '{}': plan {i}: crs: {e}", layer.name)))?;
+                let scene = scene_def()?;
+                let target = SceneTarget { crs: &scene, frame: &terrain.frame };
+                let features = gis::read_vector(&path, crs.as_ref(), target)?;
+                let seed = layer.seed ^ crate::rng::mix(i as u64 + 1);
+                let remaining = config.max_plants.saturating_sub(plants.len());
+                plants.extend(plan::place_plan(plan, &features, &path, &terrain, &species, seed, remaining)?);
+            }
             info!(layer = %layer.name, plants = plants.len(), "vegetation placed");
             layers.push(VegetationLayer { name: layer.name.clone(), plants });
         }
@@ -194,6 +239,32 @@ impl Scene {
     /// The names of the vegetation layers, in order (the names per-layer styles use).
     pub fn layer_names(&self) -> Vec<String> {
         self.layers.iter().map(|l| l.name.clone()).collect()
+    }
+}
+
+/// A layer's land cover in the scene CRS: a raster reprojected if needed, or GeoJSON
+/// polygons rasterized over the terrain.
+fn load_landcover(
+    path: &Path,
+    layer: &config::LayerConfig,
+    scene: &CrsDefinition,
+    terrain: &Terrain,
+) -> Result<gis::Raster, SceneError> {
+    let opts = &layer.landcover_options;
+    let crs = opts
+        .crs
+        .as_deref()
+        .map(CrsDefinition::parse)
+        .transpose()
+        .map_err(|e| SceneError::Invalid(format!("layer '{}': landcover_options.crs: {e}", layer.name)))?;
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if matches!(ext.as_deref(), Some("geojson" | "json")) {
+        let target = SceneTarget { crs: scene, frame: &terrain.frame };
+        let features = gis::read_vector(path, crs.as_ref(), target)?;
+        let (lo, hi) = terrain.bounds();
+        Ok(gis::vector::rasterize_labels(&features, &opts.property, opts.cell, lo, hi, &terrain.frame, path)?)
+    } else {
+        Ok(gis::load_raster_in(path, crs.as_ref(), scene, &terrain.dem.extent())?)
     }
 }
 

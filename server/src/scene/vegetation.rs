@@ -72,8 +72,9 @@ impl SpacingGrid {
     }
 }
 
-/// Places the plants of one layer. `landcover` must be in the same CRS as the terrain's DEM;
-/// more than `max_plants` plants is an error rather than a silent truncation.
+/// Places the plants of one layer. `landcover` must be in the same CRS as the terrain's DEM
+/// (the scene loader reprojects it); more than `max_plants` plants is an error rather than a
+/// silent truncation.
 pub fn place(
     terrain: &Terrain,
     landcover: &Raster,
@@ -83,6 +84,24 @@ pub fn place(
 ) -> Result<Vec<PlantInstance>, SceneError> {
     check_same_crs(&terrain.frame, landcover)?;
     let (lo, hi) = terrain.bounds();
+    let class_at = |p: [f64; 2]| {
+        let (cx, cy) = terrain.frame.to_crs(p[0], p[1]);
+        landcover.sample_nearest(cx, cy).map(|c| c.round() as i64)
+    };
+    place_in(terrain, (lo, hi), &class_at, rules, seed, max_plants)
+}
+
+/// [`place`] with the class under a scene point given by `class_at` (a land cover, a
+/// polygon) and candidates only within `bounds` (scene metres, e.g. a polygon's box).
+pub fn place_in(
+    terrain: &Terrain,
+    bounds: ([f64; 2], [f64; 2]),
+    class_at: &dyn Fn([f64; 2]) -> Option<i64>,
+    rules: &[PlacementRule],
+    seed: u64,
+    max_plants: usize,
+) -> Result<Vec<PlantInstance>, SceneError> {
+    let (lo, hi) = bounds;
     let mut grid =
         SpacingGrid { cell: rules.iter().map(|r| r.min_spacing).fold(1.0, f64::max), buckets: HashMap::new() };
     let mut plants = Vec::new();
@@ -104,8 +123,10 @@ pub fn place(
             for i in i0..=i1 {
                 let [u, v, r, s] = cell_random(seed, rule_index, i, j);
                 let p = [(i as f64 + u) * step, (j as f64 + v) * step];
-                let (cx, cy) = terrain.frame.to_crs(p[0], p[1]);
-                if landcover.sample_nearest(cx, cy).map(|c| c.round() as i64) != Some(rule.class) {
+                if !(lo[0]..=hi[0]).contains(&p[0]) || !(lo[1]..=hi[1]).contains(&p[1]) {
+                    continue;
+                }
+                if class_at(p) != Some(rule.class) {
                     continue;
                 }
                 let Some(z) = terrain.height_at(p[0], p[1]) else { continue };
@@ -130,13 +151,13 @@ pub fn place(
     Ok(plants)
 }
 
-/// Land cover and DEM must share a CRS until rasters are reprojected (data-layer work).
+/// Land cover and DEM must share a CRS ([`crate::gis::load_raster_in`] reprojects).
 fn check_same_crs(frame: &LocalFrame, landcover: &Raster) -> Result<(), SceneError> {
     if &landcover.crs == frame.crs() {
         Ok(())
     } else {
         Err(SceneError::Invalid(format!(
-            "land-cover CRS {:?} differs from the DEM's CRS {:?}; reproject the land cover to the DEM's CRS",
+            "land-cover CRS {} differs from the DEM's CRS {}; load it with gis::load_raster_in to reproject it",
             landcover.crs,
             frame.crs()
         )))
