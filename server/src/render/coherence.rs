@@ -106,20 +106,19 @@ pub fn compensated_difference(
     (if count == 0 { 0.0 } else { sum / count as f64 }, count)
 }
 
-/// The flicker figure of `style` along `path`: the mean over consecutive frame pairs of
-/// [`compensated_difference`], rendered with one view state so the hybrid hatching follows the
-/// camera.
-pub fn flicker(
+/// The motion-compensated difference ([`compensated_difference`]) of every consecutive frame
+/// pair of `style` along `path` that shares pixels, rendered with one view state so the hybrid
+/// hatching follows the camera: a spike among them is a pop.
+pub fn frame_differences(
     renderer: &Renderer,
     style: &Style,
     path: &[Camera],
     width: u32,
     height: u32,
-) -> Result<f64, RenderError> {
+) -> Result<Vec<f64>, RenderError> {
     let mut state = renderer.new_view_state();
     let mut previous: Option<(Camera, image::RgbaImage, Vec<f32>)> = None;
-    let mut total = 0.0;
-    let mut pairs = 0usize;
+    let mut differences = Vec::with_capacity(path.len());
     for camera in path {
         let request = FrameRequest::new(camera, style, width, height).history(&mut state);
         let frame = renderer.render(request.read(Readback::DEPTH))?;
@@ -128,13 +127,24 @@ pub fn flicker(
             let (diff, count) =
                 compensated_difference((prev_cam, prev_image, prev_depth), (camera, &frame.image, &depth));
             if count > 0 {
-                total += diff;
-                pairs += 1;
+                differences.push(diff);
             }
         }
         previous = Some((*camera, frame.image, depth));
     }
-    Ok(if pairs == 0 { 0.0 } else { total / pairs as f64 })
+    Ok(differences)
+}
+
+/// The flicker figure of `style` along `path`: the mean of its [`frame_differences`].
+pub fn flicker(
+    renderer: &Renderer,
+    style: &Style,
+    path: &[Camera],
+    width: u32,
+    height: u32,
+) -> Result<f64, RenderError> {
+    let differences = frame_differences(renderer, style, path, width, height)?;
+    Ok(if differences.is_empty() { 0.0 } else { differences.iter().sum::<f64>() / differences.len() as f64 })
 }
 
 #[cfg(test)]
