@@ -16,7 +16,7 @@ use std::collections::HashMap;
 /// (thesis 7.3), so each cell lies in one of them.
 pub const MASS_CELL: f32 = 10.0;
 /// Canopy cover (the share of a cell under crowns) from which a cell joins a mass.
-const MIN_COVER: f32 = 0.08;
+const MIN_COVER: f32 = 0.1;
 /// Plants a cell needs to join a mass: a lone tree stays a tree (drawn as a dot far away).
 const MIN_PLANTS: u32 = 2;
 /// Rings from the top of a dome to its base, and segments around it.
@@ -167,7 +167,7 @@ pub struct DomeMesh {
 
 /// Builds one dome per cell of `cells` (all from `all`, which holds every mass cell of the
 /// same plants, for the neighbours): an ellipsoid cap over the cell at the cell's height,
-/// its radius growing with the cover, its centre jittered within the cell so the scallops of
+/// its area about that of the crowns, its centre jittered within the cell so the scallops of
 /// a mass's outline do not line up with the grid.
 pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>) -> DomeMesh {
     let mut mesh = DomeMesh::default();
@@ -176,7 +176,10 @@ pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>) -> Dom
         let mut rng = SplitMix64::new(mix(i as u64 ^ mix(j as u64)));
         let jitter = Vec2::new(rng.range(-0.15, 0.15), rng.range(-0.15, 0.15)) * MASS_CELL;
         let center = (Vec2::new(i as f32, j as f32) + 0.5) * MASS_CELL + jitter;
-        let radius = MASS_CELL * (0.45 + 0.3 * (cell.cover / 0.4).min(1.0)) * rng.range(0.9, 1.1);
+        // About the crowns' area (a sparse cell stays a small dome), overlapping the
+        // neighbours' domes from a cover of about half.
+        let radius =
+            MASS_CELL * ((cell.cover / std::f32::consts::PI).sqrt() * 1.2).clamp(0.3, 0.7) * rng.range(0.9, 1.1);
         let base = cell.ground - SKIRT;
         let half_height = (cell.height + SKIRT).max(0.5);
         // The canopy's slope from the neighbours' crown tops (open ground counts as ground).
