@@ -257,3 +257,24 @@ fn the_forest_edge_matches_its_reference_at_200_m_1_km_and_3_km() {
         assert_eq!(columns as u32, WIDTH / 3 + 1, "{name} at {distance} m: the edge shows in {columns} columns");
     }
 }
+
+#[test]
+fn the_sample_scene_from_above_shows_its_plants_in_three_presets() {
+    let scene = Scene::load(Path::new("data/boulder/scene.toml")).expect("sample scene");
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    // `landsketch render --pos 0,-1500,3000 --yaw 0 --pitch -35`: north over the terrain.
+    let camera = Camera { position: [0.0, -1500.0, 3000.0], yaw: 0.0, pitch: -35.0, ..scene.default_camera };
+    let ids = renderer
+        .render(FrameRequest::new(&camera, Style::default(), WIDTH, HEIGHT).read(Readback::IDS))
+        .map(|f| f.ids.unwrap_or_default())
+        .unwrap();
+    // The existing layer's plants as dots (9 pines/ha).
+    let pixels = ids.iter().filter(|&&id| id >> 24 == 2).count();
+    assert!(pixels > 150, "the existing plants cover {pixels} pixels from above");
+    let mut sheet = RgbaImage::new(WIDTH * 3, HEIGHT);
+    for (col, name) in ["full_npr", "half_npr", "photorealism"].iter().enumerate() {
+        let image = renderer.render(FrameRequest::new(&camera, preset(name), WIDTH, HEIGHT)).map(|f| f.image).unwrap();
+        image::imageops::replace(&mut sheet, &image, i64::from(WIDTH) * col as i64, 0);
+    }
+    assert_matches_reference(&sheet, Path::new("tests/reference/sample_above.png"), 0.03);
+}
