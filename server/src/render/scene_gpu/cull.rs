@@ -142,8 +142,13 @@ impl SceneGpu {
             if draws[0].is_none() {
                 continue;
             }
-            // A lone plant far away stays a dot (a mass draws the plants of a wood).
-            let dot = lod.dot_scale(px);
+            // A lone plant far away stays a dot (a mass draws the plants of a wood); a plan view
+            // is a map at true scale, which leaves plants below `min_px` out.
+            let dot = match plan {
+                Some(_) if px < lod.min_px && lod.force.is_none() => continue,
+                Some(_) => 1.0,
+                None => lod.dot_scale(px),
+            };
             stats.plants_drawn += 1;
             let data_abstraction = abstraction(i.offset_scale[0], i.offset_scale[1]);
             for draw in draws.into_iter().flatten() {
