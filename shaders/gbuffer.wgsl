@@ -8,7 +8,7 @@
 // ahead of this file from their Rust definitions.
 
 // The kind of surface a pipeline draws (`render::gbuffer::Surface`): 0 terrain, 1 wood,
-// 2 foliage, 3 billboard. One pipeline per kind, so each shader holds only its kind's code:
+// 2 foliage, 3 billboard, 4 vegetation mass. One pipeline per kind, so each shader holds only its kind's code:
 // lavapipe runs both sides of every branch for every fragment.
 override SURFACE: u32 = 0u;
 // Whether the pipeline draws leaf particles (`vs_leaf`), which may be elliptical.
@@ -34,6 +34,12 @@ const OUTLINE_ALPHA: f32 = 0.75;
 const PI: f32 = 3.14159265;
 const WOOD_TILES: f32 = 4.0;
 const WOOD_TILE_HEIGHT: f32 = 1.5;
+// The surface kind of vegetation masses (`render::gbuffer::Surface::Mass`).
+const MASS: u32 = 4u;
+// Radius in pixels of its sphere below which a billboard's alpha cutoff falls towards zero.
+const DOT_RADIUS_PX: f32 = 2.0;
+// Width in pixels of a vegetation mass's outline.
+const MASS_OUTLINE_PX: f32 = 1.25;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -57,7 +63,9 @@ struct VertexIn {
     @location(15) reference_sphere: vec4<f32>,
     // foliage: the implicit surface's normal N_s scaled by the ambient coefficient k_a (Luft
     // et al. eq. 4, §3.3), model space; billboards: the mean k_a of their leaves along z (only
-    // the length counts); zero for terrain and wood ("none")
+    // the length counts); zero for terrain and wood ("none"); vegetation masses: their colour
+    // (linear RGB, and their uv holds the distance to the mass's edge and the height of its
+    // plants, see `mass_cover`)
     @location(13) implicit: vec3<f32>,
 };
 
@@ -140,7 +148,8 @@ fn vertex_out(in: VertexIn, p: vec3<f32>) -> VertexOut {
     out.uv = in.uv;
     out.view_depth = view_depth(world);
     let has_hlp = in.hlp.w > 0.0;
-    let patch_id = select(0u, in.hlp_index + 1u, has_hlp);
+    // A mass is one patch: its grid reference points place strokes, they draw no contours.
+    let patch_id = select(0u, in.hlp_index + 1u, has_hlp && SURFACE != MASS);
     out.ids = vec2<u32>(in.object_id, (SURFACE << 24u) | patch_id);
     let center = to_world(in.hlp.xyz, in);
     out.hlp_normal = world - center;
@@ -358,6 +367,23 @@ fn billboard_normal(frag: vec2<f32>, in: VertexOut) -> vec3<f32> {
     return normalize(transpose(r) * view_normal);
 }
 
+// Vegetation masses (`prep::masses`, thesis 7.3): the share of the screen-door values a mass
+// pixel covers, `LodSettings::mass_cover` of the height in pixels of the plants it stands for
+// (`uv.y`, metres) across the blend band (`lod_mask`, pixels), so the mass takes over exactly
+// the pixels its plants leave.
+fn mass_cover(in: VertexOut) -> f32 {
+    let px = in.uv.y / metres_per_px(in.view_depth);
+    let band = in.lod_mask;
+    return select(select(0.0, 1.0, px < band.x), saturate((band.y - px) / (band.y - band.x)), band.y > band.x);
+}
+
+// The albedo alpha of a mass pixel: within MASS_OUTLINE_PX of the mass's outer edge (`uv.x`,
+// metres) its outline, inked by the layer's `mass_outline` as leaf outlines are (thesis eq.
+// 4.1, `outline_ink` in compose.wgsl: ink (1 − α)·4).
+fn mass_alpha(in: VertexOut) -> f32 {
+    return select(1.0, 1.0 - 0.25 * layer.mass_outline, in.uv.x < MASS_OUTLINE_PX * metres_per_px(in.view_depth));
+}
+
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let frag = in.clip;
@@ -372,7 +398,12 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // most abstract shape of the leaf shape map) with the leaf shape. `inside` is how far the
     // texel lies inside the shape: α − α_t, or 1 − (s² + t²) on an elliptical leaf (the
     // ellipse equation in the particle's coordinates).
-    let alpha_t = mix(material.alpha_cutoff, material.alpha_min, layer.leaf_shape);
+    var alpha_t = mix(material.alpha_cutoff, material.alpha_min, layer.leaf_shape);
+    // A billboard only a few pixels across samples a mip level where its texels blend with
+    // the transparent gutter: its cutoff falls with its size, so a far lone plant stays a dot.
+    if SURFACE == 3u {
+        alpha_t *= saturate(in.own_sphere.w / metres_per_px(in.own_sphere.z) / DOT_RADIUS_PX);
+    }
     let elliptical = LEAF_PARTICLES && in.leaf.z > 0.5;
     let inside = select(texel.a - alpha_t, 1.0 - dot(in.leaf.xy, in.leaf.xy), elliptical);
     if material.alpha_cutoff >= 0.0 && inside < 0.0 {
@@ -381,9 +412,12 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // Thesis eq. 4.1: leaf texels with α − α_t ≤ Δα are the leaf's outline, drawn in ink by
     // the compose pass (albedo alpha OUTLINE_ALPHA instead of 1).
     let outline = SURFACE == 2u && layer.leaf_outline > 0.0 && inside <= layer.leaf_outline;
-    // Terrain has no levels of detail to blend.
+    // Terrain has no levels of detail to blend; a mass covers what its plants leave.
     let dither = screen_door(frag.xy);
-    if SURFACE != 0u && (dither < in.lod_mask.x || dither >= in.lod_mask.y) {
+    if SURFACE != 0u && SURFACE != MASS && (dither < in.lod_mask.x || dither >= in.lod_mask.y) {
+        discard;
+    }
+    if SURFACE == MASS && dither >= mass_cover(in) {
         discard;
     }
     var n = normalize(in.normal);
@@ -396,7 +430,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // (the paper's encoding) for the post passes' ambient term.
     let ka = length(in.implicit);
     var ambient_k = 1.0;
-    if SURFACE >= 2u && ka > 1e-4 {
+    if SURFACE >= 2u && SURFACE != MASS && ka > 1e-4 {
         let blended = mix(n, in.implicit / ka, layer.implicit_normals);
         n = select(in.implicit / ka, normalize(blended), length(blended) > 1e-4);
         ambient_k = max(mix(1.0, ka, layer.ambient_occlusion), 1e-3);
@@ -409,6 +443,10 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
             nh = billboard_normal(frag.xy, in);
             n = nh;
         }
+        // A mass keeps its own smooth normals: the reference point only places the strokes.
+        if SURFACE == MASS {
+            nh = n;
+        }
         n = normalize(mix(n, nh, layer.normal_blend));
         let ev = (frame.view * vec4<f32>(nh, 0.0)).xy;
         e = select(vec2<f32>(0.0), normalize(ev), length(ev) > 1e-4);
@@ -419,6 +457,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     // Elliptical leaves take the material's average colour: their shape is not the texture's.
     let color = select(texel.rgb, material.average_color, elliptical);
     out.albedo = vec4<f32>(mix(color, material.average_color, layer.color_abstraction), select(1.0, OUTLINE_ALPHA, outline));
+    if SURFACE == MASS {
+        out.albedo = vec4<f32>(in.implicit, mass_alpha(in));
+    }
     out.normal = vec4<f32>(n * ambient_k, tiles_per_px);
     out.depth = vec2<f32>(in.view_depth, radius_px);
     out.ids = in.ids;

@@ -126,7 +126,9 @@ fn reference_points_thin_out_with_distance() {
     let positions: Vec<[f32; 2]> = (0..60).map(|i| [(i % 10) as f32 * 9.0 - 45.0, (i / 10) as f32 * 9.0]).collect();
     let scene = trees_on_a_plain(&positions);
     let height = scene.species[0].model.height();
-    let renderer = Renderer::new(gpu(), &scene).unwrap();
+    // Without vegetation masses, which draw the far trees of this small wood instead.
+    let no_masses = RenderOptions { lod: LodSettings { mass_px: 0.0, ..LodSettings::default() }, ..Default::default() };
+    let renderer = Renderer::with_options(gpu(), &scene, &no_masses).unwrap();
     let (width, h) = (512, 384);
     let px_per_metre = h as f32 / (2.0 * 30f32.to_radians().tan());
     let looking_north_from = |y: f32| Camera::perspective([0.0, y, 100.0 + height * 0.5], 0.0, 0.0, 60.0);
@@ -150,6 +152,12 @@ fn reference_points_thin_out_with_distance() {
         .expect("stats");
     assert_eq!(far.plants_drawn, 60, "{far:?}");
     assert_eq!(far.reference_points, 6, "{far:?}");
+    // With masses the domes of the wood's cells stand for the far trees, on the same points.
+    let massed = Renderer::new(gpu(), &scene)
+        .unwrap()
+        .draw_stats(&FrameRequest::new(&looking_north_from(-height * px_per_metre / 4.0), Style::default(), width, h))
+        .expect("stats");
+    assert!(massed.mass_domes > 0 && massed.plants_drawn < 60, "{massed:?}");
 }
 
 #[test]

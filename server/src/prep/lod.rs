@@ -1,9 +1,11 @@
 //! Levels of detail of a plant (SPEC P4, thesis 7 and Table 8.1): the full model near the
 //! camera, a billboard cloud of its HLPs (cross billboards per HLP, thesis 4.2) with a fitted
 //! trunk cylinder at middle distance, and one cross billboard for the whole plant far away.
-//! Plants smaller than a pixel are not drawn. The level follows the plant's projected height;
-//! in a band around each threshold both levels are drawn with complementary screen-door masks,
-//! so levels blend instead of popping.
+//! Plants of a vegetation mass (`prep::masses`) smaller than `mass_px` are drawn by the mass
+//! instead; other plants are never drawn smaller than `min_px`, so a lone tree far away stays a
+//! dot. The level follows the plant's projected height; in a band around each threshold both
+//! levels (or the plant and its mass) are drawn with complementary screen-door masks, so levels
+//! blend instead of popping.
 //!
 //! This module builds the CPU side (geometry, atlas layout, level selection); the billboard
 //! textures are baked on the GPU by `render::bake`.
@@ -45,8 +47,12 @@ pub struct LodSettings {
     /// Plants at least this tall (and below `full_px`) are drawn as HLP billboard clouds;
     /// smaller ones as one billboard.
     pub hlp_px: f32,
-    /// Plants smaller than this are not drawn.
+    /// Plants outside a vegetation mass smaller than this are drawn enlarged to it (a dot), so
+    /// lone trees and hedgerows stay visible at any distance.
     pub min_px: f32,
+    /// Plants of a vegetation mass smaller than this are drawn by the mass instead (blended
+    /// across the band of `fade`, thesis 7.3); 0 draws no masses.
+    pub mass_px: f32,
     /// Plants drawn as one billboard and smaller than this share the reference point of their
     /// terrain-grid cell for hatching and silhouettes (thesis 7.3), larger ones have their own.
     pub grid_px: f32,
@@ -58,7 +64,7 @@ pub struct LodSettings {
 
 impl Default for LodSettings {
     fn default() -> Self {
-        LodSettings { full_px: 160.0, hlp_px: 40.0, min_px: 0.75, grid_px: 12.0, fade: 0.2, force: None }
+        LodSettings { full_px: 160.0, hlp_px: 40.0, min_px: 1.5, mass_px: 8.0, grid_px: 12.0, fade: 0.2, force: None }
     }
 }
 
@@ -79,23 +85,65 @@ impl LodSettings {
             && self.full_px.is_finite()
             && (0.0..=self.hlp_px).contains(&self.grid_px)
             && (0.0..0.5).contains(&self.fade);
-        if ok {
+        let (lo, hi) = self.mass_band();
+        let masses = self.mass_px == 0.0 || (self.min_px <= lo && hi <= self.hlp_px * (1.0 - self.fade));
+        if ok && masses {
             Ok(())
         } else {
-            Err("LOD thresholds need 0 <= min_px <= hlp_px <= full_px, 0 <= grid_px <= hlp_px and 0 <= fade < 0.5"
+            Err("LOD thresholds need 0 <= min_px <= hlp_px <= full_px, 0 <= grid_px <= hlp_px, 0 <= fade < 0.5 \
+                 and mass_px 0 or with its band between min_px and the HLP band"
                 .into())
         }
     }
 
-    /// The draws of a plant that is `px` pixels tall on screen: none below `min_px`, one level
-    /// away from the thresholds, two complementary masked levels inside a blend band.
-    pub fn select(&self, px: f32) -> [Option<LevelDraw>; 2] {
+    /// Whether plants far away are drawn by their vegetation masses (not when a level is forced).
+    pub fn masses(&self) -> bool {
+        self.mass_px > 0.0 && self.force.is_none()
+    }
+
+    /// The blend band (pixels of plant height) in which a mass takes over from its plants.
+    pub fn mass_band(&self) -> (f32, f32) {
+        (self.mass_px * (1.0 - self.fade), self.mass_px * (1.0 + self.fade))
+    }
+
+    /// The share of the screen-door values a mass covers where its plants are `px` tall: 1
+    /// below the mass band, 0 above it, falling linearly across it; the plants draw the rest.
+    /// `mass_cover` in `shaders/gbuffer.wgsl` is the same function on the mass's pixels.
+    pub fn mass_cover(&self, px: f32) -> f32 {
+        let (lo, hi) = self.mass_band();
+        if hi <= lo {
+            return if px < lo { 1.0 } else { 0.0 };
+        }
+        ((hi - px) / (hi - lo)).clamp(0.0, 1.0)
+    }
+
+    /// How much a plant `px` tall is enlarged: to `min_px` when it is smaller (plants of a mass
+    /// are drawn by it at that size), not at all when a level is forced.
+    pub fn dot_scale(&self, px: f32) -> f32 {
+        if self.force.is_none() && px > 0.0 && px < self.min_px { self.min_px / px } else { 1.0 }
+    }
+
+    /// The draws of a plant that is `px` pixels tall on screen: one level away from the
+    /// thresholds, two complementary masked levels inside a blend band. A plant of a mass
+    /// (`massed`) is not drawn below the mass band and shares the pixels with the mass inside
+    /// it; others are drawn at every size (the caller enlarges them to `min_px`,
+    /// [`LodSettings::dot_scale`]).
+    pub fn select(&self, px: f32, massed: bool) -> [Option<LevelDraw>; 2] {
         let all = |level| Some(LevelDraw { level, mask: [0.0, 1.0] });
         if let Some(level) = self.force {
             return [all(level), None];
         }
-        if px.is_nan() || px < self.min_px {
+        if px.is_nan() {
             return [None, None];
+        }
+        if massed && self.masses() {
+            let cover = self.mass_cover(px);
+            if cover >= 1.0 {
+                return [None, None];
+            }
+            if cover > 0.0 {
+                return [Some(LevelDraw { level: LodLevel::Plant, mask: [cover, 1.0] }), None];
+            }
         }
         for (threshold, fine, coarse) in
             [(self.full_px, LodLevel::Full, LodLevel::Hlp), (self.hlp_px, LodLevel::Hlp, LodLevel::Plant)]
@@ -279,17 +327,40 @@ mod tests {
     #[test]
     fn levels_follow_projected_size_and_blend_in_bands() {
         let s = LodSettings::default();
-        let level = |px| s.select(px).map(|d| d.map(|d| (d.level, d.mask)));
+        let level = |px| s.select(px, false).map(|d| d.map(|d| (d.level, d.mask)));
         assert_eq!(level(500.0), [Some((LodLevel::Full, [0.0, 1.0])), None]);
         assert_eq!(level(100.0), [Some((LodLevel::Hlp, [0.0, 1.0])), None]);
         assert_eq!(level(10.0), [Some((LodLevel::Plant, [0.0, 1.0])), None]);
-        assert_eq!(level(0.5), [None, None]);
+        assert_eq!(level(0.5), [Some((LodLevel::Plant, [0.0, 1.0])), None], "a lone plant stays a dot");
+        assert!((s.dot_scale(0.5) - s.min_px / 0.5).abs() < 1e-6 && s.dot_scale(10.0) == 1.0);
         // Exactly on the full/HLP threshold both draw half of the pixels, complementarily.
         assert_eq!(level(160.0), [Some((LodLevel::Full, [0.0, 0.5])), Some((LodLevel::Hlp, [0.5, 1.0]))]);
         let forced = LodSettings { force: Some(LodLevel::Plant), ..s };
-        assert_eq!(forced.select(1000.0)[0].map(|d| d.level), Some(LodLevel::Plant));
+        assert_eq!(forced.select(1000.0, true)[0].map(|d| d.level), Some(LodLevel::Plant));
         assert!(LodSettings { hlp_px: 500.0, ..s }.validate().is_err());
+        assert!(LodSettings { mass_px: 36.0, ..s }.validate().is_err(), "mass band inside the HLP band");
         s.validate().unwrap();
+    }
+
+    #[test]
+    fn plants_of_a_mass_hand_over_to_it_across_the_band() {
+        let s = LodSettings::default();
+        let (lo, hi) = s.mass_band();
+        let massed = |px| s.select(px, true).map(|d| d.map(|d| (d.level, d.mask)));
+        assert_eq!(massed(lo * 0.9), [None, None], "below the band the mass draws the plant");
+        assert_eq!(massed(hi * 1.1), [Some((LodLevel::Plant, [0.0, 1.0])), None]);
+        let mid = 0.5 * (lo + hi);
+        let [Some(draw), None] = s.select(mid, true) else { panic!("one draw in the band") };
+        assert_eq!(draw.level, LodLevel::Plant);
+        assert!((draw.mask[0] - 0.5).abs() < 1e-6 && draw.mask[1] == 1.0, "the half the mass leaves: {draw:?}");
+        assert!((s.mass_cover(mid) - 0.5).abs() < 1e-6 && s.mass_cover(lo) == 1.0 && s.mass_cover(hi) == 0.0);
+        // Across the band the plant's share and the mass's share add up to every pixel.
+        for px in [lo, 0.3 * lo + 0.7 * hi, hi] {
+            let plant = massed(px)[0].map_or(0.0, |(_, mask)| mask[1] - mask[0]);
+            assert!((plant + s.mass_cover(px) - 1.0).abs() < 1e-6, "{px}");
+        }
+        let off = LodSettings { mass_px: 0.0, ..s };
+        assert!(!off.masses() && off.select(lo * 0.5, true)[0].is_some());
     }
 
     #[test]

@@ -11,4 +11,5 @@ pub mod implicit;
 pub mod leaf_shape;
 pub mod leaves;
 pub mod lod;
+pub mod masses;
 pub mod terrain_lod;

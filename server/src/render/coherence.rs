@@ -161,19 +161,26 @@ pub struct Flicker {
     pub terrain_ink: f64,
 }
 
-/// The flicker figures of `style` along `path`: the mean over consecutive frame pairs of
-/// [`compensated_difference`], rendered with one view state so the hybrid hatching follows the
-/// camera.
-pub fn flicker(
+/// What rendering `style` along a camera path measured: the motion-compensated difference
+/// ([`compensated_difference`]) of every consecutive frame pair, and the first frame's terrain
+/// ink share ([`terrain_ink_share`]).
+struct PathMeasurement {
+    differences: Vec<Difference>,
+    terrain_ink: f64,
+}
+
+/// Renders `style` along `path` with one view state, so the hybrid hatching follows the camera,
+/// and measures every consecutive frame pair.
+fn measure_path(
     renderer: &Renderer,
     style: &Style,
     path: &[Camera],
     width: u32,
     height: u32,
-) -> Result<Flicker, RenderError> {
+) -> Result<PathMeasurement, RenderError> {
     let mut state = renderer.new_view_state();
     let mut previous: Option<(Camera, image::RgbaImage, Vec<f32>, Vec<u32>)> = None;
-    let (mut whole, mut terrain) = ((0.0, 0usize), (0.0, 0usize));
+    let mut differences = Vec::with_capacity(path.len());
     let mut terrain_ink = None;
     for camera in path {
         let request = FrameRequest::new(camera, style, width, height).history(&mut state);
@@ -184,18 +191,44 @@ pub fn flicker(
         if let Some((prev_cam, prev_image, prev_depth, prev_ids)) = &previous {
             let before = MeasuredFrame { camera: prev_cam, image: prev_image, depth: prev_depth, ids: prev_ids };
             let now = MeasuredFrame { camera, image: &frame.image, depth: &depth, ids: &ids };
-            let diff = compensated_difference(&before, &now);
-            if diff.count > 0 {
-                whole = (whole.0 + diff.mean(), whole.1 + 1);
-            }
-            if diff.terrain_count > 0 {
-                terrain = (terrain.0 + diff.terrain_mean(), terrain.1 + 1);
-            }
+            differences.push(compensated_difference(&before, &now));
         }
         previous = Some((*camera, frame.image, depth, ids));
     }
-    let mean = |(sum, pairs): (f64, usize)| if pairs == 0 { 0.0 } else { sum / pairs as f64 };
-    Ok(Flicker { whole_frame: mean(whole), terrain: mean(terrain), terrain_ink: terrain_ink.unwrap_or(0.0) })
+    Ok(PathMeasurement { differences, terrain_ink: terrain_ink.unwrap_or(0.0) })
+}
+
+/// The whole-frame difference of every consecutive frame pair of `style` along `path` that
+/// shares pixels: a spike among them is a pop.
+pub fn frame_differences(
+    renderer: &Renderer,
+    style: &Style,
+    path: &[Camera],
+    width: u32,
+    height: u32,
+) -> Result<Vec<f64>, RenderError> {
+    let measured = measure_path(renderer, style, path, width, height)?;
+    Ok(measured.differences.iter().filter(|d| d.count > 0).map(Difference::mean).collect())
+}
+
+/// The flicker figures of `style` along `path`: the means over consecutive frame pairs of the
+/// whole-frame and the terrain-only differences (pairs that share such pixels).
+pub fn flicker(
+    renderer: &Renderer,
+    style: &Style,
+    path: &[Camera],
+    width: u32,
+    height: u32,
+) -> Result<Flicker, RenderError> {
+    let measured = measure_path(renderer, style, path, width, height)?;
+    let mean =
+        |values: Vec<f64>| if values.is_empty() { 0.0 } else { values.iter().sum::<f64>() / values.len() as f64 };
+    let d = &measured.differences;
+    Ok(Flicker {
+        whole_frame: mean(d.iter().filter(|d| d.count > 0).map(Difference::mean).collect()),
+        terrain: mean(d.iter().filter(|d| d.terrain_count > 0).map(Difference::terrain_mean).collect()),
+        terrain_ink: measured.terrain_ink,
+    })
 }
 
 /// The share of the terrain pixels of `image` (by the object IDs `ids`) more ink than paper:

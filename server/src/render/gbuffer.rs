@@ -168,6 +168,9 @@ gpu_block! {
         pub implicit_normals: f32,
         /// How much k_a of the implicit surface (eq. 4) darkens the ambient light.
         pub ambient_occlusion: f32,
+        /// Ink of a vegetation mass's outline: the style's contour strength (the masses' edges
+        /// are too shallow in depth for the contour pass far away).
+        pub mass_outline: f32,
     }
 }
 
@@ -190,6 +193,7 @@ impl LayerStyle {
             leaf_outline: style.leaf_outline,
             implicit_normals: style.implicit_normals,
             ambient_occlusion: style.ambient_occlusion,
+            mass_outline: style.contour_strength,
         }
     }
 }
@@ -231,11 +235,15 @@ pub enum Surface {
     Foliage = 2,
     /// A billboard of an HLP or a whole plant: shaded as its HLP sphere.
     Billboard = 3,
+    /// The domes of a far vegetation mass (`prep::masses`): hatched like foliage from the grid
+    /// reference points, coloured per vertex, outlined at the mass's edge.
+    Mass = 4,
 }
 
 impl Surface {
     /// Every kind, in the order of their codes.
-    pub const ALL: [Surface; 4] = [Surface::Terrain, Surface::Wood, Surface::Foliage, Surface::Billboard];
+    pub const ALL: [Surface; 5] =
+        [Surface::Terrain, Surface::Wood, Surface::Foliage, Surface::Billboard, Surface::Mass];
 }
 
 gpu_block! {
@@ -396,7 +404,7 @@ pub struct Instance {
 /// The geometry pass pipelines and the bind group layouts meshes and frames are bound with.
 pub struct GeometryPass {
     /// One pipeline per [`Surface`] for meshes (`vs_main`), in the order of [`Surface::ALL`].
-    pipelines: [wgpu::RenderPipeline; 4],
+    pipelines: [wgpu::RenderPipeline; Surface::ALL.len()],
     /// The pipeline drawing leaf particles (`vs_leaf`, SPEC R1, R2; foliage).
     pub leaf_pipeline: wgpu::RenderPipeline,
     pub frame_layout: wgpu::BindGroupLayout,

@@ -3,6 +3,7 @@
 //! levels, and the hatching reference points (thesis 7.3) the instances index.
 
 use super::batch::{Batch, BatchKey, Runs, Share};
+use super::masses::{MassDraw, MassView};
 use super::{LEVELS, Plant, SceneGpu, SpeciesGpu};
 use crate::prep::hlp::Sphere;
 use crate::prep::leaves;
@@ -36,6 +37,9 @@ pub struct DrawStats {
     pub source_triangles: u64,
     /// Hatching reference points of the frame (HLPs, plants and terrain-grid cells, thesis 7.3).
     pub reference_points: u64,
+    /// Domes of vegetation masses drawn (`prep::masses`: each stands for the plants of a cell
+    /// of the plant-density grid far away).
+    pub mass_domes: u64,
 }
 
 impl DrawStats {
@@ -69,6 +73,8 @@ pub struct VisibleSet {
     pub(super) batches: Vec<Batch<LodLevel>>,
     /// Runs of plants at full detail drawn with a share of their leaf particles.
     pub(super) particle_batches: Vec<Batch<Share>>,
+    /// Chunks of vegetation masses, each with its instance.
+    pub(super) masses: Vec<MassDraw>,
     /// Index ranges of the visible terrain chunks at their levels of detail.
     pub(super) terrain_ranges: Vec<Range<u32>>,
     pub(super) references: Vec<RefKey>,
@@ -132,10 +138,17 @@ impl SceneGpu {
                     s.height * i.offset_scale[3] * px_per_metre / depth
                 }
             };
-            let draws = lod.select(px);
+            let draws = lod.select(px, plant.massed);
             if draws[0].is_none() {
                 continue;
             }
+            // A lone plant far away stays a dot (a mass draws the plants of a wood); a plan view
+            // is a map at true scale, which leaves plants below `min_px` out.
+            let dot = match plan {
+                Some(_) if px < lod.min_px && lod.force.is_none() => continue,
+                Some(_) => 1.0,
+                None => lod.dot_scale(px),
+            };
             stats.plants_drawn += 1;
             let data_abstraction = abstraction(i.offset_scale[0], i.offset_scale[1]);
             for draw in draws.into_iter().flatten() {
@@ -153,7 +166,9 @@ impl SceneGpu {
                     }
                     LodLevel::Plant => (references.point(RefKey::Plant(index as u32)), [0.0; 4]),
                 };
-                let instance = Instance { mask: draw.mask, reference_base, reference_sphere, data_abstraction, ..*i };
+                let mut instance =
+                    Instance { mask: draw.mask, reference_base, reference_sphere, data_abstraction, ..*i };
+                instance.offset_scale[3] *= dot;
                 let species = plant.species;
                 match share {
                     Some(b) => particle_runs.push(BatchKey { species, detail: Share(b), slot }, instance),
@@ -193,15 +208,22 @@ impl SceneGpu {
         let mut instances = vec![terrain];
         let batches = runs.append_to(&mut instances);
         let particle_batches = particle_runs.append_to(&mut instances);
+        let masses = match &self.masses {
+            Some(masses) if lod.masses() => {
+                let view = MassView { planes: &planes, eye, plan, px_per_metre, band: lod.mass_band() };
+                masses.cull(&view, &layer, &mut instances, &mut references, &mut stats)
+            }
+            _ => Vec::new(),
+        };
         stats.reference_points = references.keys.len() as u64;
-        VisibleSet { instances, batches, particle_batches, terrain_ranges, references: references.keys, stats }
+        VisibleSet { instances, batches, particle_batches, masses, terrain_ranges, references: references.keys, stats }
     }
 }
 
 /// The reference points of a frame as [`SceneGpu::cull`] collects them: each plant's HLPs as
 /// one run, plants and grid cells once each.
 #[derive(Default)]
-struct References {
+pub(super) struct References {
     keys: Vec<RefKey>,
     index: HashMap<RefKey, u32>,
 }
@@ -216,6 +238,14 @@ impl References {
         })
     }
 
+    /// The first entry of a run of `cells` grid cells (a chunk of a vegetation mass indexes its
+    /// cells from there; a cell may also have an entry of its own, with the same coordinates).
+    pub(super) fn cells(&mut self, cells: &[u32]) -> u32 {
+        let first = self.keys.len() as u32;
+        self.keys.extend(cells.iter().map(|&c| RefKey::Cell(c)));
+        first
+    }
+
     /// The first entry of the `count` HLPs of `plant`, added as one run on first use (a plant
     /// in a blend band draws two levels with the same HLPs).
     fn hlps(&mut self, plant: u32, count: usize) -> u32 {
@@ -227,15 +257,34 @@ impl References {
     }
 }
 
+/// The far reference points of thesis 7.3: one sphere per cell holding plants, and the cell
+/// of each grid position.
+pub(super) struct ReferenceGrid {
+    pub spheres: Vec<Sphere>,
+    index: HashMap<(i64, i64), u32>,
+    spacing: f32,
+}
+
+impl ReferenceGrid {
+    fn key(spacing: f32, x: f32, y: f32) -> (i64, i64) {
+        ((x / spacing).floor() as i64, (y / spacing).floor() as i64)
+    }
+
+    /// The cell holding the ground position (x, y), if any plant stands in it.
+    pub fn cell_at(&self, x: f32, y: f32) -> Option<u32> {
+        self.index.get(&Self::key(self.spacing, x, y)).copied()
+    }
+}
+
 /// The far reference points of thesis 7.3: an evenly spaced grid of `spacing` metres over the
 /// ground the plants stand on. Each cell holding plants gets one sphere, centred on the mean
 /// foliage centre of its plants (so it lies inside the vegetation, as the thesis asks) and
 /// reaching over the cell; sets every plant's `cell`.
-pub(super) fn reference_grid(plants: &mut [Plant], species: &[SpeciesGpu], spacing: f32) -> Vec<Sphere> {
+pub(super) fn reference_grid(plants: &mut [Plant], species: &[SpeciesGpu], spacing: f32) -> ReferenceGrid {
     let mut cells: HashMap<(i64, i64), (u32, Vec3, u32)> = HashMap::new();
     for plant in plants.iter_mut() {
         let [x, y, ..] = plant.instance.offset_scale;
-        let key = ((x / spacing).floor() as i64, (y / spacing).floor() as i64);
+        let key = ReferenceGrid::key(spacing, x, y);
         let next = cells.len() as u32;
         let cell = cells.entry(key).or_insert((next, Vec3::ZERO, 0));
         cell.1 += plant.world(species[plant.species].board.center);
@@ -243,11 +292,12 @@ pub(super) fn reference_grid(plants: &mut [Plant], species: &[SpeciesGpu], spaci
         plant.cell = cell.0;
     }
     let mut spheres = vec![Sphere { center: Vec3::ZERO, radius: 0.0 }; cells.len()];
-    for (index, sum, count) in cells.into_values() {
-        spheres[index as usize] =
-            Sphere { center: sum / count as f32, radius: spacing * std::f32::consts::FRAC_1_SQRT_2 };
+    let mut index = HashMap::with_capacity(cells.len());
+    for (key, (i, sum, count)) in cells {
+        spheres[i as usize] = Sphere { center: sum / count as f32, radius: spacing * std::f32::consts::FRAC_1_SQRT_2 };
+        index.insert(key, i);
     }
-    spheres
+    ReferenceGrid { spheres, index, spacing }
 }
 
 /// The side planes of a view frustum (left, right, bottom, top, near) from a world → clip

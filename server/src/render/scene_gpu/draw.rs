@@ -9,9 +9,9 @@ use std::ops::Range;
 
 impl SceneGpu {
     /// Records the draws of the terrain and every visible instance run, each mesh with the
-    /// `geometry` pipeline of its surface; plants drawn with leaf particles last, their leaves
-    /// with the leaf pipeline. Each draw binds `frame` (group 0) at the layer-style offset of
-    /// its style slot.
+    /// `geometry` pipeline of its surface, then the chunks of vegetation masses; plants drawn
+    /// with leaf particles last, their leaves with the leaf pipeline. Each draw binds `frame`
+    /// (group 0) at the layer-style offset of its style slot.
     pub fn draw(
         &self,
         pass: &mut wgpu::RenderPass<'_>,
@@ -42,6 +42,9 @@ impl SceneGpu {
             for mesh in &self.species[key.species].levels[key.detail.index()] {
                 draw(pass, mesh, instances.clone());
             }
+        }
+        if let Some(masses) = &self.masses {
+            masses.draw(pass, &visible.masses, geometry.pipeline(Surface::Mass), frame, layer_offset);
         }
         for Batch { key, instances } in &visible.particle_batches {
             pass.set_bind_group(0, frame, &layer_offset(key.slot));

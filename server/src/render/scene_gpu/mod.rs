@@ -5,12 +5,14 @@
 //!
 //! By job: `upload` builds the GPU resources of a scene (and writes each frame's instances),
 //! `bake_cache` bakes the billboard atlases or loads them from the disk cache, `cull` picks what
-//! a frame draws into runs keyed by `batch::BatchKey`, and `draw` records the draws.
+//! a frame draws into runs keyed by `batch::BatchKey`, `masses` uploads and culls the domes of
+//! far vegetation masses, and `draw` records the draws.
 
 mod bake_cache;
 mod batch;
 mod cull;
 mod draw;
+mod masses;
 mod upload;
 
 pub use cull::{DrawStats, LayerDraw, VisibleSet, frustum_planes};
@@ -24,11 +26,13 @@ use crate::prep::cache::DiskCache;
 use crate::prep::hlp::{self, Sphere};
 use crate::prep::leaves::PARTICLE_SHARES;
 use crate::prep::lod::{Billboard, LodLevel};
+use crate::prep::masses::{self as mass_groups, MassPlant, Masses};
 use crate::prep::terrain_lod::{TerrainChunk, TerrainLod};
 use crate::scene::Scene;
 use crate::scene::plant::Material;
 use cull::reference_grid;
 use glam::Vec3;
+use masses::{MassGpu, species_color};
 use tracing::info;
 use upload::{Uploader, reference_buffer};
 
@@ -90,12 +94,14 @@ struct SpeciesGpu {
     board: Sphere,
 }
 
-/// One plant: its species, its instance data and the terrain-grid cell it stands in.
+/// One plant: its species, its instance data, the terrain-grid cell it stands in and whether
+/// a vegetation mass draws it far away.
 #[derive(Clone, Copy)]
 struct Plant {
     species: usize,
     instance: Instance,
     cell: u32,
+    massed: bool,
 }
 
 impl Plant {
@@ -120,6 +126,8 @@ pub struct SceneGpu {
     source_triangles: u64,
     /// The far reference points: one sphere per terrain-grid cell holding plants (world space).
     cells: Vec<Sphere>,
+    /// The domes of far vegetation masses, if any layer has one.
+    masses: Option<MassGpu>,
     /// The instances of a frame: room for every plant at two levels, and the terrain.
     instance_buffer: wgpu::Buffer,
     /// The reference coordinates of a frame, grown when a frame needs more.
@@ -159,8 +167,38 @@ impl SceneGpu {
             plant_boards.push((hlps, board));
         }
 
+        // Each layer's plants grouped into vegetation masses (`prep::masses`).
+        let crowns: Vec<(f32, f32, [f32; 3])> = scene
+            .species
+            .iter()
+            .map(|s| {
+                let board = Billboard::of_model(&s.model);
+                (board.half_width, s.model.bounds().1[2], species_color(&s.model))
+            })
+            .collect();
+        let layer_masses: Vec<Masses> = scene
+            .layers
+            .iter()
+            .map(|layer| {
+                let plants: Vec<MassPlant> = layer
+                    .plants
+                    .iter()
+                    .map(|p| {
+                        let (radius, height, color) = crowns[p.species];
+                        MassPlant {
+                            position: p.position,
+                            crown_radius: radius * p.scale,
+                            height: height * p.scale,
+                            color,
+                        }
+                    })
+                    .collect();
+                mass_groups::group(&plants)
+            })
+            .collect();
         let mut plants = Vec::with_capacity(scene.plant_count());
         for (layer_index, layer) in scene.layers.iter().enumerate() {
+            let massed = &layer_masses[layer_index].massed;
             for (i, plant) in layer.plants.iter().enumerate() {
                 let [x, y, z] = plant.position;
                 let instance = Instance {
@@ -172,11 +210,13 @@ impl SceneGpu {
                     data_abstraction: [0.0; 2],
                     reference_sphere: [0.0; 4],
                 };
-                plants.push(Plant { species: plant.species, instance, cell: 0 });
+                plants.push(Plant { species: plant.species, instance, cell: 0, massed: massed[i] });
             }
         }
         plants.sort_by_key(|p| p.species);
-        let cells = reference_grid(&mut plants, &species, REFERENCE_GRID_SPACING);
+        let grid = reference_grid(&mut plants, &species, REFERENCE_GRID_SPACING);
+        let masses = MassGpu::new(&mut up, &layer_masses, &grid);
+        let cells = grid.spheres;
         let source_triangles = scene.terrain.mesh.triangle_count() as u64
             + plants.iter().map(|p| species[p.species].triangles[LodLevel::Full.index()]).sum::<u64>();
         info!(
@@ -186,12 +226,13 @@ impl SceneGpu {
             source_triangles,
             "scene uploaded"
         );
-        // Meshes and textures, and at most every plant twice per frame (the reference buffer
-        // grows with what a frame draws; it is not counted).
-        let gpu_bytes = up.bytes() + 2 * (plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64;
+        // Meshes and textures, and at most every plant twice and every mass chunk once per
+        // frame (the reference buffer grows with what a frame draws; it is not counted).
+        let instance_count = 2 * plants.len() as u64 + 1 + masses.as_ref().map_or(0, |m| m.chunk_count() as u64);
+        let gpu_bytes = up.bytes() + instance_count * std::mem::size_of::<Instance>() as u64;
         let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("instances"),
-            size: (2 * plants.len() as u64 + 1) * std::mem::size_of::<Instance>() as u64,
+            size: instance_count * std::mem::size_of::<Instance>() as u64,
             usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -203,6 +244,7 @@ impl SceneGpu {
             plants,
             source_triangles,
             cells,
+            masses,
             instance_buffer,
             reference_buffer: std::sync::Mutex::new(reference_buffer(device, 1)),
             gpu_bytes,

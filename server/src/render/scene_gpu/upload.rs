@@ -149,7 +149,7 @@ impl<'a> Uploader<'a> {
     }
 
     /// Uploads a vertex and an index buffer.
-    fn buffers(&mut self, vertices: &[u8], indices: &[u32]) -> (wgpu::Buffer, wgpu::Buffer) {
+    pub(super) fn buffers(&mut self, vertices: &[u8], indices: &[u32]) -> (wgpu::Buffer, wgpu::Buffer) {
         self.bytes += (vertices.len() + 4 * indices.len()) as u64;
         let vertex_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("vertices"),
@@ -198,7 +198,7 @@ impl<'a> Uploader<'a> {
     /// [`shape_map_cached`]) with α_max at the material's cutoff, so the style's `leaf_shape`
     /// picks a more abstract shape at render time. `particle_scale` sizes leaf particles drawn
     /// as a share of the leaves (1 for everything else).
-    fn material(&mut self, material: &Material, surface: Surface, particle_scale: f32) -> wgpu::BindGroup {
+    pub(super) fn material(&mut self, material: &Material, surface: Surface, particle_scale: f32) -> wgpu::BindGroup {
         let cutoff = material.alpha_cutoff.unwrap_or(-1.0);
         let shapes = match (&material.texture, material.alpha_cutoff) {
             (Some(texture), Some(alpha_max)) if surface == Surface::Foliage => {
