@@ -4,7 +4,7 @@
 mod common;
 
 use clap::Parser;
-use common::server::{TestServer, client, get, json_of, loaded};
+use common::server::{TestServer, client, get, json_of, loaded, raw_exchange};
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::view::{ImageFormat, Limits, Source, ViewParams};
 use landsketch::api::ws::{FrameHeader, HEADER_LEN};
@@ -909,27 +909,6 @@ async fn shutdown_does_not_wait_for_a_client_that_never_reads() {
     let took = started.elapsed();
     stuck.abort();
     assert!(took < landsketch::api::ws::CLOSE_GRACE - Duration::from_secs(1), "shutdown took {took:?}");
-}
-
-/// Writes `request` on a raw connection and reads until the server closes it (at most
-/// `wait`); returns what came back and how long the server kept the connection.
-async fn raw_exchange(server: &TestServer, request: &[u8], wait: Duration) -> (String, Duration) {
-    use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let mut stream = TcpStream::connect(server.addr).await.expect("connect");
-    stream.write_all(request).await.expect("write");
-    let started = Instant::now();
-    let mut received = Vec::new();
-    let mut buffer = [0u8; 4096];
-    loop {
-        match tokio::time::timeout_at((started + wait).into(), stream.read(&mut buffer)).await {
-            Ok(Ok(0) | Err(_)) => break,
-            Ok(Ok(n)) => received.extend_from_slice(&buffer[..n]),
-            Err(_) => {
-                panic!("the server kept the connection open for {wait:?}; got {:?}", String::from_utf8_lossy(&received))
-            }
-        }
-    }
-    (String::from_utf8_lossy(&received).into_owned(), started.elapsed())
 }
 
 /// D8: partial headers, an idle kept-alive connection and a slow upload are cut off after

@@ -6,7 +6,7 @@
 mod common;
 
 use common::fraction;
-use common::server::{TestServer, client, get, json_of};
+use common::server::{TestServer, client, get, json_of, raw_exchange};
 use futures_util::StreamExt;
 use image::{GrayImage, Luma, Rgba, RgbaImage};
 use landsketch::api::ws::{FrameHeader, HEADER_LEN};
@@ -16,6 +16,8 @@ use std::time::Duration;
 use tokio_tungstenite::tungstenite::Message;
 
 /// A view of the sample scene with hatched trees and terrain; `{style}` is filled in.
+// Tests that measure how much ink a TAM adds tone the terrain by its absolute light
+// (`terrain_relief: 0`): with the default relief tone the lit ground is paper under any TAM.
 const VIEW: &str = "x=205&y=185&yaw=268&pitch=-1.5&width=192&height=144";
 
 /// The shape of the renderer's TAMs: 6 tone levels of 256².
@@ -137,7 +139,7 @@ async fn an_uploaded_tam_changes_the_next_render_and_delete_restores_it() {
     let generated = art_png(&server, "/api/artmaps/tam/1.png").await.to_luma8();
     assert_eq!(generated.dimensions(), (TAM_SIZE * TAM_LEVELS, TAM_SIZE));
 
-    let hatched = r#"{"hatch_map": 1}"#;
+    let hatched = r#"{"hatch_map": 1, "terrain_relief": 0}"#;
     let other = r#"{"hatch_map": 0}"#;
     let (etag, _, before) = render(&server, hatched).await;
     let (_, _, other_before) = render(&server, other).await;
@@ -160,7 +162,8 @@ async fn an_uploaded_tam_changes_the_next_render_and_delete_restores_it() {
     let paths = (save("tam1-before", &before), save("tam1-black", &after));
     assert!(ink_after > ink_before + 0.1, "ink {ink_before:.3} → {ink_after:.3}: {paths:?}");
     assert_ink_kept(&before, &after, &paths);
-    let stale = client().get(server.url(&format!("/api/render?{VIEW}&style=%7B%22hatch_map%22%3A1%7D")));
+    let stale = client()
+        .get(server.url(&format!("/api/render?{VIEW}&style=%7B%22hatch_map%22%3A1%2C%22terrain_relief%22%3A0%7D")));
     let stale = stale.header("if-none-match", &etag).send().await.expect("GET");
     assert_eq!(stale.status(), StatusCode::OK, "the old ETag no longer matches");
     // Another TAM draws as before.
@@ -219,7 +222,7 @@ async fn maps_are_added_at_the_count_and_only_the_last_added_is_removed() {
         assert_eq!(added.status(), StatusCode::CREATED);
     }
     assert_eq!(list(&server).await["tams"].as_array().map(Vec::len), Some(6));
-    let (_, _, black) = render(&server, r#"{"hatch_map": 5}"#).await;
+    let (_, _, black) = render(&server, r#"{"hatch_map": 5, "terrain_relief": 0}"#).await;
     assert!(ink(&black) > 0.2, "hatch_map 5 draws with the added TAM: {:?}", save("tam5", &black));
     let message = assert_error(delete(&server, "/api/artmaps/tam/4", None).await, 409, "conflict").await;
     assert!(message.contains("remove tonal art map 5 first"), "{message}");
@@ -269,8 +272,12 @@ async fn bad_uploads_get_422_and_change_nothing() {
     assert_error(put(&server, "/api/artmaps/tam/two", black_tam(TAM_SIZE, 6), None).await, 404, "not_found").await;
     assert_error(get(&server.url("/api/artmaps/tam/9.png")).await, 404, "not_found").await;
     assert_error(get(&server.url("/api/artmaps/sam/x.png")).await, 404, "not_found").await;
-    let oversized = vec![0u8; 16 << 20 | 1];
-    assert_error(put(&server, "/api/artmaps/sam/1", oversized, None).await, 413, "too_large").await;
+    // Announced beyond the limit: refused before the body is sent (the server does not read
+    // it, so a client still writing it would see the connection close instead of the answer).
+    let oversized =
+        format!("PUT /api/artmaps/sam/1 HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: {}\r\n\r\n", 16u64 << 20 | 1);
+    let (received, _) = raw_exchange(&server, oversized.as_bytes(), Duration::from_secs(10)).await;
+    assert!(received.starts_with("HTTP/1.1 413") && received.contains("too_large"), "{received}");
 
     assert_eq!(list(&server).await, listed, "nothing changed");
     let (after_etag, _, after) = render(&server, r#"{"hatch_map": 2}"#).await;
@@ -386,7 +393,7 @@ async fn uploads_are_stored_and_reloaded_after_a_restart() {
 async fn websocket_sessions_get_the_new_maps_in_their_next_frame() {
     let dir = tempfile::tempdir().expect("temp dir");
     let server = TestServer::start(dir.path(), |_| {});
-    let query = format!("{VIEW}&style=%7B%22hatch_map%22%3A3%7D");
+    let query = format!("{VIEW}&style=%7B%22hatch_map%22%3A3%2C%22terrain_relief%22%3A0%7D");
     let (mut socket, _) = tokio_tungstenite::connect_async(server.ws_url(&query)).await.expect("WebSocket");
     let first = next_frame(&mut socket).await.1;
 

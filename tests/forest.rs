@@ -222,12 +222,19 @@ fn a_dolly_towards_the_forest_edge_has_no_flicker_spike() {
     let path = dolly(3000.0, 200.0, 28);
     let differences = frame_differences(renderer, &preset("full_npr"), &path, WIDTH, HEIGHT).unwrap();
     assert_eq!(differences.len(), path.len() - 1);
-    let mut sorted = differences.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let worst = sorted[sorted.len() - 1];
-    assert!(median > 0.0, "the frames differ not at all: {differences:?}");
-    assert!(worst <= 1.5 * median, "a flicker spike of {worst:.4} against the median {median:.4}: {differences:?}");
+    // A pop is a frame pair that differs much more than the pairs around it; the difference
+    // itself grows steadily as the forest fills more of the view, which is no pop.
+    for (i, &difference) in differences.iter().enumerate() {
+        let mut around: Vec<f64> =
+            (i.saturating_sub(3)..(i + 4).min(differences.len())).filter(|&j| j != i).map(|j| differences[j]).collect();
+        around.sort_by(f64::total_cmp);
+        let median = around[around.len() / 2];
+        assert!(median > 0.0, "the frames differ not at all: {differences:?}");
+        assert!(
+            difference <= 1.5 * median,
+            "a flicker spike of {difference:.4} at pair {i} against the median {median:.4} of its neighbours: {differences:?}"
+        );
+    }
 }
 
 #[test]

@@ -132,3 +132,24 @@ pub async fn json_of(response: reqwest::Response) -> Value {
     let bytes = response.bytes().await.expect("body");
     serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&bytes)))
 }
+
+/// Writes `request` on a raw connection and reads until the server closes it (at most
+/// `wait`); returns what came back and how long the server kept the connection.
+pub async fn raw_exchange(server: &TestServer, request: &[u8], wait: Duration) -> (String, Duration) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut stream = tokio::net::TcpStream::connect(server.addr).await.expect("connect");
+    stream.write_all(request).await.expect("write");
+    let started = Instant::now();
+    let mut received = Vec::new();
+    let mut buffer = [0u8; 4096];
+    loop {
+        match tokio::time::timeout_at((started + wait).into(), stream.read(&mut buffer)).await {
+            Ok(Ok(0) | Err(_)) => break,
+            Ok(Ok(n)) => received.extend_from_slice(&buffer[..n]),
+            Err(_) => {
+                panic!("the server kept the connection open for {wait:?}; got {:?}", String::from_utf8_lossy(&received))
+            }
+        }
+    }
+    (String::from_utf8_lossy(&received).into_owned(), started.elapsed())
+}

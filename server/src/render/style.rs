@@ -436,6 +436,10 @@ style_fields! {
     /// as every other surface) to 1 (flat ground and slopes facing the sun are paper, slopes
     /// turned away from it dark: the pen-and-ink convention of Imhof and Buchin et al. 2011).
     terrain_relief: f32 = 1.0, 0..=1;
+    /// How much the terrain darkens with its steepness, 0 (light alone) to 1 (a 45° slope is
+    /// black whatever its light): Lehmann's hachure rule "the steeper, the darker", so gentle
+    /// relief in full sun (valleys, banks, field edges) still gets sparse strokes.
+    terrain_slope_tone: f32 = 0.4, 0..=1;
     /// How dark hatching is drawn, 0 (none) to 1.
     hatch_strength: f32 = 1.0, 0..=1;
     /// Lifts the hatch tone towards white, 0 (as lit) to 1 (brightest: no strokes), thesis

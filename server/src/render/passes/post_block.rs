@@ -71,6 +71,8 @@ gpu_block! {
         pub terrain_tile: f32,
         /// Terrain tone from light relative to flat ground's (0..1).
         pub terrain_relief: f32,
+        /// Terrain darkening with steepness (0..1).
+        pub terrain_slope_tone: f32,
         /// Ink colour (sRGB).
         pub ink: Vec3f,
         /// Paper colour (sRGB).
@@ -136,6 +138,7 @@ impl PostStyle {
             terrain_strokes: style.terrain_stroke_direction.code(),
             terrain_tile: style.terrain_tile(),
             terrain_relief: style.terrain_relief,
+            terrain_slope_tone: style.terrain_slope_tone,
             ink: Vec3f(style.ink),
             paper: Vec3f(style.paper),
             sky_zenith: Vec3f(style.sky_zenith),
