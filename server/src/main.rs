@@ -13,7 +13,7 @@ use landsketch::render::style::{FrameStyle, LayerStyle, PartialStyle};
 use landsketch::render::view_style::{StyleTarget, ViewStyle};
 use landsketch::render::{FrameRequest, Gpu, RenderOptions, Renderer, Style};
 use landsketch::scene::Scene;
-use landsketch::scene::camera::Camera;
+use landsketch::scene::camera::{Camera, Projection};
 use landsketch::scene::camera_params::{CameraMode, CameraParams, Source};
 use landsketch::store::Store;
 use landsketch::store::request::{DataRequest, LayerCache};
@@ -292,7 +292,12 @@ fn main() -> Result<()> {
             let crs = scene.terrain.dem.crs;
             let e = scene.terrain.dem.extent();
             println!("crs        {crs}");
-            println!("extent     x {} .. {}, y {} .. {} in {crs}", e.min_x, e.max_x, e.min_y, e.max_y);
+            // Degrees to about a centimetre, projected units to the centimetre.
+            let digits = if crs.is_geographic() { 7 } else { 2 };
+            println!(
+                "extent     x {:.digits$} .. {:.digits$}, y {:.digits$} .. {:.digits$} in {crs}",
+                e.min_x, e.max_x, e.min_y, e.max_y
+            );
             match wgs84_extent(&crs, &e) {
                 Ok((lo, hi)) => println!(
                     "wgs84      lon {:.6} .. {:.6}, lat {:.6} .. {:.6} (EPSG:4326)",
@@ -311,7 +316,16 @@ fn main() -> Result<()> {
             for l in &scene.layers {
                 println!("layer      {:<12} {:>6} plants", l.name, l.plants.len());
             }
-            println!("camera     {:?}", scene.default_camera);
+            let c = &scene.default_camera;
+            let [x, y, z] = c.position;
+            let view = match c.projection {
+                Projection::Perspective => format!("perspective, fov {:.1}°", c.fov),
+                Projection::Plan { width } => format!("plan view {width:.0} m across"),
+            };
+            println!(
+                "camera     at x {x:.1}, y {y:.1}, z {z:.1} m, heading {:.1}°, pitch {:.1}°, roll {:.1}°, {view}",
+                c.yaw, c.pitch, c.roll
+            );
             Ok(())
         }
     }
