@@ -10,6 +10,7 @@ pub mod config;
 pub mod connections;
 pub mod error;
 pub mod layers;
+pub mod meetings;
 pub mod metrics;
 pub mod openapi;
 pub mod pool;
@@ -63,7 +64,7 @@ pub enum ServerError {
     /// The layer store in the data directory cannot be opened.
     #[error("cannot open the layer store: {0}")]
     Store(#[from] StoreError),
-    /// `--admin-token-file` is unreadable or empty.
+    /// `--admin-token-file` or `--meeting-password-file` is unreadable or empty.
     #[error(transparent)]
     TokenFile(#[from] config::TokenFileError),
     /// A `--cors-origins` entry is not a valid origin.
@@ -108,6 +109,8 @@ struct Inner {
     shutdown: watch::Sender<bool>,
     /// Permits for decoding uploads (`--upload-decodes`).
     decodes: Arc<tokio::sync::Semaphore>,
+    /// Open meetings (presenter mode).
+    meetings: meetings::Meetings,
 }
 
 /// State shared by every handler; cheap to clone.
@@ -117,10 +120,12 @@ pub struct AppState(Arc<Inner>);
 impl AppState {
     fn new(config: ServerConfig, store: Arc<Store>) -> AppState {
         let decodes = Arc::new(tokio::sync::Semaphore::new(config.upload_decodes));
+        let metrics = Metrics::new();
         AppState(Arc::new(Inner {
             decodes,
             config,
-            metrics: Metrics::new(),
+            meetings: meetings::Meetings::new(metrics.clone()),
+            metrics,
             store,
             started: Instant::now(),
             ready: OnceLock::new(),
@@ -141,6 +146,11 @@ impl AppState {
     /// The data-layer store (opened from `--data-dir`).
     pub fn store(&self) -> &Arc<Store> {
         &self.0.store
+    }
+
+    /// The open meetings.
+    pub fn meetings(&self) -> &meetings::Meetings {
+        &self.0.meetings
     }
 
     /// The loaded scene and renderer; `None` while loading.
@@ -209,6 +219,9 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
             limited(get(artmaps::png).put(artmaps::put).delete(artmaps::delete), artmaps::MAX_ART_MAP_BYTES),
         )
         .route("/api/ws", get(ws::upgrade))
+        .route("/api/meetings", limited(post(meetings::open), config.body_limit))
+        .route("/api/meetings/{code}", get(meetings::get).delete(meetings::delete))
+        .route("/api/meetings/{code}/qr.svg", get(meetings::qr))
         .route("/api/openapi.json", get(openapi::openapi_json))
         .route("/metrics", get(metrics::metrics_handler))
         // The browser UI at `/`; paths that are neither routes nor files get the JSON 404.
