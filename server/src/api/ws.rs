@@ -16,6 +16,7 @@ pub use tour::{TourAction, TourControl, TourEvent, TourViewpoint};
 use super::auth::Admin;
 use super::connections::stopped;
 use super::error::{ApiError, ErrorDetail};
+use super::events::{Changed, LiveEvent};
 use super::meetings::{Mailbox, Presenter};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
@@ -275,6 +276,9 @@ pub enum ServerMessage {
         /// The viewpoint's caption.
         caption: Option<String>,
     },
+    /// Comments, layers, viewpoints or art maps changed (`what`); see the guide's
+    /// "Participation" chapter.
+    Changed(Changed),
     /// Answer to `ping`.
     Pong {
         /// The ping's `id`.
@@ -450,6 +454,7 @@ enum Event {
     Meeting(meeting::MeetingEvent),
     Present(Presenter),
     ArtMaps,
+    Live(Result<LiveEvent, u64>),
     Wake,
     Idle,
     Shutdown,
@@ -522,6 +527,7 @@ impl<'a> Session<'a> {
         let mut shutdown = self.state.shutdown_receiver();
         let mut socket = Link { socket, send_timeout: config.ws_send_timeout(), shutdown: shutdown.clone() };
         let mut art_maps = self.ready.art.subscribe();
+        let mut live = self.state.events().subscribe();
         let hello = ServerMessage::Hello {
             session: self.id,
             protocol: PROTOCOL_VERSION,
@@ -551,6 +557,7 @@ impl<'a> Session<'a> {
                 event = meeting::next_event(&mut self.meeting) => Event::Meeting(event),
                 Some(presenter) = self.mailbox.recv() => Event::Present(presenter),
                 Ok(()) = art_maps.changed() => Event::ArtMaps,
+                event = next_live(&mut live) => Event::Live(event),
                 () = sleep_until(wake_at) => Event::Wake,
                 () = tokio::time::sleep_until(idle_at) => Event::Idle,
                 _ = shutdown.wait_for(|stopping| *stopping) => Event::Shutdown,
@@ -595,6 +602,16 @@ impl<'a> Session<'a> {
                     self.delivered = None;
                     let (tams, sams) = self.ready.art.counts();
                     Some(ServerMessage::ArtMaps { tams, sams })
+                }
+                Event::Live(Ok(event)) => event.public().map(ServerMessage::Changed),
+                Event::Live(Err(missed)) => {
+                    tracing::debug!(session = self.id, missed, "session fell behind the live events");
+                    for reload in super::events::reload_all() {
+                        if let Err(failed) = socket.send_json(&ServerMessage::Changed(reload)).await {
+                            return self.ended(failed);
+                        }
+                    }
+                    None
                 }
                 Event::Wake => None,
                 Event::Idle => {
@@ -903,6 +920,17 @@ async fn frame_done(in_flight: &mut Option<InFlight>) -> Result<Frame, PoolError
     match in_flight {
         Some(f) => (&mut f.receiver).await.unwrap_or(Err(PoolError::Cancelled)),
         None => std::future::pending().await,
+    }
+}
+
+/// The next live event; `Err(n)` when the session fell `n` events behind. The sender lives in
+/// the app state, so the channel never closes while a session runs.
+async fn next_live(live: &mut tokio::sync::broadcast::Receiver<LiveEvent>) -> Result<LiveEvent, u64> {
+    use tokio::sync::broadcast::error::RecvError;
+    match live.recv().await {
+        Ok(event) => Ok(event),
+        Err(RecvError::Lagged(missed)) => Err(missed),
+        Err(RecvError::Closed) => std::future::pending().await,
     }
 }
 
