@@ -173,6 +173,43 @@ async fn a_wrong_code_is_refused_and_the_session_keeps_serving() {
 }
 
 #[tokio::test]
+async fn the_openapi_document_describes_meetings() {
+    let openapi = json_of(get(&shared().url("/api/openapi.json")).await).await;
+    for (path, method) in [
+        ("/api/meetings", "post"),
+        ("/api/meetings/{code}", "get"),
+        ("/api/meetings/{code}", "delete"),
+        ("/api/meetings/{code}/qr.svg", "get"),
+    ] {
+        assert!(openapi["paths"][path][method].is_object(), "OpenAPI lacks {method} {path}");
+    }
+    let schemas = &openapi["components"]["schemas"];
+    assert!(schemas["MeetingInfo"].is_object() && schemas["OpenMeeting"].is_object());
+    let messages = |name: &str| {
+        schemas[name]["oneOf"]
+            .as_array()
+            .map(|variants| {
+                // A variant is an object with `type`, or (newtype variants) all of a
+                // reference and such an object.
+                variants
+                    .iter()
+                    .flat_map(|v| std::iter::once(v).chain(v["allOf"].as_array().into_iter().flatten()))
+                    .filter_map(|v| v["properties"]["type"]["enum"][0].as_str().map(str::to_owned))
+                    .collect::<Vec<_>>()
+            })
+            .unwrap_or_default()
+    };
+    let client_messages = messages("ClientMessage");
+    for kind in ["open_meeting", "close_meeting", "caption", "join", "detach", "rejoin", "tour"] {
+        assert!(client_messages.iter().any(|m| m == kind), "ClientMessage lacks {kind}: {client_messages:?}");
+    }
+    let server_messages = messages("ServerMessage");
+    for kind in ["meeting", "meeting_ended", "tour"] {
+        assert!(server_messages.iter().any(|m| m == kind), "ServerMessage lacks {kind}: {server_messages:?}");
+    }
+}
+
+#[tokio::test]
 async fn a_follower_detaches_with_the_presenters_view_and_rejoins() {
     let server = shared();
     let (mut presenter, meeting) = presenter(server).await;
