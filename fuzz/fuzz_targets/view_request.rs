@@ -1,0 +1,8 @@
+//! Fuzz target `view_request`: see [`inputs::view_request`].
+#![no_main]
+
+#[path = "../inputs.rs"]
+#[allow(dead_code)] // each target calls one of the shared entry points
+mod inputs;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| inputs::view_request(data));
