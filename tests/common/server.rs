@@ -32,10 +32,32 @@ pub struct TestServer {
 
 impl TestServer {
     pub fn start(data_dir: &Path, configure: impl FnOnce(&mut ServerConfig)) -> TestServer {
+        let (scene, _) = loaded().clone();
+        TestServer::start_scene(data_dir, Path::new(SCENE), scene, configure)
+    }
+
+    /// A server on the scene file `path` whose scene `scene` is loaded already.
+    pub fn start_scene(
+        data_dir: &Path,
+        path: &Path,
+        scene: Arc<Scene>,
+        configure: impl FnOnce(&mut ServerConfig),
+    ) -> TestServer {
+        TestServer::try_start_scene(data_dir, path, scene, configure).unwrap_or_else(|e| panic!("server failed: {e}"))
+    }
+
+    /// Like [`TestServer::start_scene`]; the error with which the server stopped instead of
+    /// becoming ready.
+    pub fn try_start_scene(
+        data_dir: &Path,
+        path: &Path,
+        scene: Arc<Scene>,
+        configure: impl FnOnce(&mut ServerConfig),
+    ) -> Result<TestServer, String> {
         let mut config = ServerConfig::try_parse_from([
             "serve",
             "--scene",
-            SCENE,
+            path.to_str().expect("UTF-8 scene path"),
             "--addr",
             "127.0.0.1:0",
             "--data-dir",
@@ -45,7 +67,7 @@ impl TestServer {
         config.admin_token = None;
         config.cors_origins.clear();
         configure(&mut config);
-        let (scene, gpu) = loaded().clone();
+        let gpu = loaded().1.clone();
         let (addr_tx, addr_rx) = std::sync::mpsc::channel();
         let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
         let thread = std::thread::spawn(move || {
@@ -60,18 +82,25 @@ impl TestServer {
                     .await
             })
         });
-        let addr = addr_rx.recv().expect("server bound");
-        let server = TestServer { addr, stop: Some(stop), thread: Some(thread) };
-        server.wait_ready();
-        server
-    }
-
-    pub fn wait_ready(&self) {
+        let Ok(addr) = addr_rx.recv() else {
+            return Err(match thread.join() {
+                Ok(Err(e)) => e.to_string(),
+                _ => "the server thread ended before binding".to_owned(),
+            });
+        };
+        let mut server = TestServer { addr, stop: Some(stop), thread: Some(thread) };
         let deadline = Instant::now() + Duration::from_secs(60);
-        while blocking_status(&self.url("/api/health")) != Some(200) {
+        while blocking_status(&server.url("/api/health")) != Some(200) {
+            if server.thread.as_ref().is_some_and(|t| t.is_finished()) {
+                return Err(match server.shutdown() {
+                    Err(e) => e.to_string(),
+                    Ok(()) => "the server stopped without an error".to_owned(),
+                });
+            }
             assert!(Instant::now() < deadline, "server did not become ready");
             std::thread::sleep(Duration::from_millis(50));
         }
+        Ok(server)
     }
 
     /// The HTTP URL of `path`.

@@ -42,6 +42,10 @@ pub enum ApiError {
     /// The request body did not arrive within `--body-timeout-s`.
     #[error("{0}")]
     RequestTimeout(String),
+    /// Too many writes from one author token or client address (rate limits of
+    /// `[participation]`); try again after `retry_after` seconds.
+    #[error("{message}")]
+    TooManyRequests { message: String, retry_after: u32 },
     /// The render queue or the session limit is full; try again after `retry_after` seconds.
     #[error("{message}")]
     Busy { message: String, retry_after: u32 },
@@ -54,8 +58,9 @@ pub enum ApiError {
     /// Rendering or encoding failed on the server's side.
     #[error("rendering failed: {0}")]
     Internal(String),
-    /// The layer store failed on the server's side (details go to the log only).
-    #[error("the layer store failed; see the server log")]
+    /// The layer store or the participation store failed on the server's side (details go
+    /// to the log only).
+    #[error("the server's store failed; see the server log")]
     Storage(String),
 }
 
@@ -106,6 +111,7 @@ impl ApiError {
             ApiError::Unauthorized => StatusCode::UNAUTHORIZED,
             ApiError::Forbidden(_) => StatusCode::FORBIDDEN,
             ApiError::RequestTimeout(_) => StatusCode::REQUEST_TIMEOUT,
+            ApiError::TooManyRequests { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::Busy { .. } | ApiError::NotReady | ApiError::ShuttingDown => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) | ApiError::Storage(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
@@ -123,6 +129,7 @@ impl ApiError {
             ApiError::Unauthorized => "unauthorized",
             ApiError::Forbidden(_) => "forbidden",
             ApiError::RequestTimeout(_) => "request_timeout",
+            ApiError::TooManyRequests { .. } => "too_many_requests",
             ApiError::Busy { .. } => "busy",
             ApiError::NotReady => "not_ready",
             ApiError::ShuttingDown => "shutting_down",
@@ -146,7 +153,7 @@ impl ApiError {
 
     fn retry_after(&self) -> Option<u32> {
         match self {
-            ApiError::Busy { retry_after, .. } => Some(*retry_after),
+            ApiError::Busy { retry_after, .. } | ApiError::TooManyRequests { retry_after, .. } => Some(*retry_after),
             ApiError::NotReady | ApiError::ShuttingDown => Some(1),
             _ => None,
         }

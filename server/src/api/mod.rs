@@ -11,13 +11,16 @@ pub mod config;
 pub mod connections;
 pub mod error;
 pub mod events;
+pub mod export;
 pub mod layers;
 pub mod meetings;
 pub mod metrics;
 pub mod openapi;
 pub mod pool;
+pub mod ratelimit;
 pub mod routes;
 pub mod view;
+pub mod viewpoints;
 pub mod ws;
 
 pub use config::ServerConfig;
@@ -105,6 +108,8 @@ pub struct Ready {
     pub geo: Result<Arc<SceneGeo>, String>,
     /// The renderer's art maps and which were uploaded (`/api/artmaps`).
     pub art: ArtMaps,
+    /// The scene file's `[participation]` and `[[viewpoints]]`, and the rate limits.
+    pub participation: comments::Participation,
 }
 
 struct Inner {
@@ -243,6 +248,18 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         .route(
             "/api/artmaps/{kind}/{index}",
             limited(get(artmaps::png).put(artmaps::put).delete(artmaps::delete), artmaps::MAX_ART_MAP_BYTES),
+        )
+        .route("/api/participation", get(comments::info))
+        .route("/api/comments", limited(get(comments::list).post(comments::create), config.body_limit))
+        .route("/api/comments/{id}", get(comments::get).delete(comments::delete))
+        .route("/api/comments/{id}/like", limited(post(comments::like).delete(comments::unlike), config.body_limit))
+        .route("/api/comments/{id}/report", limited(post(comments::report), config.body_limit))
+        .route("/api/comments/{id}/approve", post(comments::approve))
+        .route("/api/comments/{id}/hide", post(comments::hide))
+        .route("/api/viewpoints", get(viewpoints::list))
+        .route(
+            "/api/viewpoints/{name}",
+            limited(post(viewpoints::create).put(viewpoints::put).delete(viewpoints::delete), config.body_limit),
         )
         .route("/api/ws", get(ws::upgrade))
         .route("/api/meetings", limited(post(meetings::open), config.body_limit))
@@ -432,6 +449,7 @@ async fn load(state: AppState, loaded: Option<(Arc<Scene>, Arc<Gpu>)>) -> Result
             metrics.clone(),
             runtime,
         )?;
+        let participation = comments::load_settings(&config.scene, &scene)?;
         let art = ArtMaps::restore(&pool, state.store());
         let cache = RenderCache::new(config.cache_bytes, metrics);
         let geo = SceneGeo::from_terrain(&scene.terrain).map(Arc::new).map_err(|e| e.to_string());
@@ -446,7 +464,7 @@ async fn load(state: AppState, loaded: Option<(Arc<Scene>, Arc<Gpu>)>) -> Result
             "scene ready"
         );
         // `load` runs once per state, so the cell is empty.
-        let _ = state.0.ready.set(Ready { scene, scene_id, adapter, pool, cache, geo, art });
+        let _ = state.0.ready.set(Ready { scene, scene_id, adapter, pool, cache, geo, art, participation });
         Ok(())
     })
     .await

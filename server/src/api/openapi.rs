@@ -1,6 +1,6 @@
 //! The OpenAPI 3 document of the server (`GET /api/openapi.json`).
 
-use super::{artmaps, error, layers, meetings, metrics, routes, view, ws};
+use super::{artmaps, comments, error, events, layers, meetings, metrics, routes, view, viewpoints, ws};
 use axum::Json;
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
 use utoipa::{Modify, OpenApi};
@@ -10,7 +10,7 @@ use utoipa::{Modify, OpenApi};
 #[openapi(
     info(
         title = "landsketch",
-        description = "Pen-and-ink renderings of GIS landscapes over HTTP and WebSocket. Rendering, the WebSocket and reading layers are public; write endpoints (layer upload and delete, art-map upload and delete, cache clearing, ending a meeting) need `Authorization: Bearer <token>` when the server has an admin token, else a loopback client."
+        description = "Pen-and-ink renderings of GIS landscapes over HTTP and WebSocket. Rendering, the WebSocket and reading layers are public; write endpoints (layer upload and delete, art-map upload and delete, cache clearing, comment moderation, viewpoints, ending a meeting) need `Authorization: Bearer <token>` when the server has an admin token, else a loopback client."
     ),
     paths(
         routes::health,
@@ -29,6 +29,20 @@ use utoipa::{Modify, OpenApi};
         artmaps::png,
         artmaps::put,
         artmaps::delete,
+        comments::info,
+        comments::create,
+        comments::list,
+        comments::get,
+        comments::like,
+        comments::unlike,
+        comments::report,
+        comments::approve,
+        comments::hide,
+        comments::delete,
+        viewpoints::list,
+        viewpoints::create,
+        viewpoints::put,
+        viewpoints::delete,
         ws::upgrade,
         meetings::open,
         meetings::get,
@@ -40,6 +54,7 @@ use utoipa::{Modify, OpenApi};
     components(schemas(
         ws::ClientMessage,
         ws::ServerMessage,
+        events::Changed,
         error::ErrorBody,
         view::ViewParams,
         meetings::MeetingInfo,
@@ -52,6 +67,7 @@ use utoipa::{Modify, OpenApi};
         (name = "layers", description = "Environment data layers: upload, list, legends, delete"),
         (name = "art maps", description = "Tonal and silhouette art maps: list, download, replace or add, restore"),
         (name = "meetings", description = "Presenter mode: a session presents, followers join with a code and see its frames"),
+        (name = "participation", description = "Comments pinned in the landscape, likes, reports, moderation, export; viewpoints"),
         (name = "operations", description = "Health, metrics, cache, this document"),
     )
 )]

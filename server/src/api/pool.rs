@@ -2,13 +2,14 @@
 //! lanes with pending work — one lane per WebSocket session (holding at most one job, which
 //! newer controls replace until the worker starts it) and one FIFO lane for REST renders
 //! (bounded; a full lane refuses new jobs). Finished images are encoded on tokio's blocking
-//! pool so that encoding overlaps the next render.
+//! pool so that encoding overlaps the next render. A REST job may instead ask what one pixel
+//! shows ([`RenderPool::pick`]: its depth and object id, for pinning comments).
 
 use super::metrics::{KindLabels, Metrics};
 use super::view::ViewRequest;
-use crate::render::FrameRequest;
 use crate::render::art_textures::{ArtKind, ArtMap, ArtMapSet};
 use crate::render::renderer::ViewState;
+use crate::render::{FrameRequest, Readback};
 use crate::render::{Gpu, RenderError, RenderOptions, Renderer};
 use crate::scene::Scene;
 use crate::store::Store;
@@ -66,7 +67,23 @@ pub enum PoolError {
     /// The worker dropped the job without an answer (the job was replaced or the pool stopped).
     #[error("the render was cancelled")]
     Cancelled,
+    /// A picked pixel lies outside the rendered image.
+    #[error("pixel {x},{y} is outside the rendered image")]
+    OutsideImage { x: u32, y: u32 },
 }
+
+/// What one pixel of a rendered view shows ([`RenderPool::pick`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pick {
+    /// Linear depth along the view axis in metres ([`crate::render::gbuffer::BACKGROUND_DEPTH`]
+    /// on the sky).
+    pub depth: f32,
+    /// The object id ([`crate::render::gbuffer::object_id`]; 0 on the sky).
+    pub object_id: u32,
+}
+
+/// Where the answer of a pick arrives.
+pub type PickReceiver = oneshot::Receiver<Result<Pick, PoolError>>;
 
 /// An encoded frame.
 #[derive(Debug, Clone)]
@@ -80,18 +97,35 @@ pub struct Frame {
 /// Where the answer of a job arrives.
 pub type FrameReceiver = oneshot::Receiver<Result<Frame, PoolError>>;
 
+/// Who waits for a job, and for what.
+enum Reply {
+    /// The encoded image.
+    Frame(oneshot::Sender<Result<Frame, PoolError>>),
+    /// What the pixel shows.
+    Pick { pixel: [u32; 2], reply: oneshot::Sender<Result<Pick, PoolError>> },
+}
+
+impl Reply {
+    fn is_closed(&self) -> bool {
+        match self {
+            Reply::Frame(reply) => reply.is_closed(),
+            Reply::Pick { reply, .. } => reply.is_closed(),
+        }
+    }
+}
+
 struct Job {
     view: ViewRequest,
     kind: FrameKind,
     /// The WebSocket session the job belongs to; its frames continue one animated view.
     session: Option<u64>,
-    reply: oneshot::Sender<Result<Frame, PoolError>>,
+    reply: Reply,
 }
 
 impl Job {
     fn new(view: ViewRequest, kind: FrameKind, session: Option<u64>) -> (Job, FrameReceiver) {
         let (reply, receiver) = oneshot::channel();
-        (Job { view, kind, session, reply }, receiver)
+        (Job { view, kind, session, reply: Reply::Frame(reply) }, receiver)
     }
 }
 
@@ -260,6 +294,20 @@ impl RenderPool {
 
     /// Queues a REST render; refused when the REST lane is full or the pool is closed.
     pub fn submit(&self, view: ViewRequest) -> Result<FrameReceiver, PoolError> {
+        let (job, receiver) = Job::new(view, FrameKind::Rest, None);
+        self.queue_rest(job)?;
+        Ok(receiver)
+    }
+
+    /// Queues a REST render of `view` that answers what `pixel` (`[column, row]`) shows
+    /// instead of an image; refused like [`RenderPool::submit`].
+    pub fn pick(&self, view: ViewRequest, pixel: [u32; 2]) -> Result<PickReceiver, PoolError> {
+        let (reply, receiver) = oneshot::channel();
+        self.queue_rest(Job { view, kind: FrameKind::Rest, session: None, reply: Reply::Pick { pixel, reply } })?;
+        Ok(receiver)
+    }
+
+    fn queue_rest(&self, job: Job) -> Result<(), PoolError> {
         let mut queue = self.shared.lock();
         if queue.closed {
             return Err(PoolError::Closed);
@@ -271,13 +319,12 @@ impl RenderPool {
             let retry_after_s = u32::try_from(estimate_ms.div_ceil(1000).max(1)).unwrap_or(u32::MAX);
             return Err(PoolError::Full { depth, retry_after_s });
         }
-        let (job, receiver) = Job::new(view, FrameKind::Rest, None);
         if queue.rest.is_empty() {
             queue.ready.push_back(Lane::Rest);
         }
         queue.rest.push_back(job);
         self.shared.queued(&queue);
-        Ok(receiver)
+        Ok(())
     }
 
     /// Queues an art-map change; the worker applies it before its next frame and answers with
@@ -351,15 +398,19 @@ fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handl
             continue; // the client left while the job waited
         }
         let started = Instant::now();
+        let read = match reply {
+            Reply::Pick { .. } => Readback { depth: true, ids: true },
+            Reply::Frame(_) => Readback::default(),
+        };
         let rendered = std::panic::catch_unwind(AssertUnwindSafe(|| {
             let data = layers.view(&view.data, store)?;
             let (camera, style, width, height) = (&view.camera, view.frame_style(), view.width, view.height);
-            let request = FrameRequest::new(camera, style, width, height).data(&data);
+            let request = FrameRequest::new(camera, style, width, height).data(&data).read(read);
             let request = match session {
                 Some(id) => request.history(views.entry(id).or_insert_with(|| renderer.new_view_state())),
                 None => request,
             };
-            renderer.render(request).map(|frame| frame.image)
+            renderer.render(request)
         }));
         let elapsed = started.elapsed();
         let render_ms = elapsed.as_secs_f32() * 1e3;
@@ -368,12 +419,25 @@ fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handl
         for (pass, ms) in renderer.take_pass_times().unwrap_or_default() {
             shared.metrics.pass_seconds.get_or_create(&[("pass", pass)]).observe(ms / 1e3);
         }
+        let reply = match reply {
+            Reply::Frame(reply) => reply,
+            Reply::Pick { pixel, reply } => {
+                let picked = match rendered {
+                    Ok(Ok(frame)) => pick_at(&frame, view.width, pixel),
+                    Ok(Err(error)) => Err(PoolError::Render(error)),
+                    Err(_) => Err(PoolError::Panicked),
+                };
+                // The client may have left; then nobody wants the answer.
+                let _ = reply.send(picked);
+                continue;
+            }
+        };
         let metrics = shared.metrics.clone();
         runtime.spawn_blocking(move || {
             let result = match rendered {
-                Ok(Ok(image)) => {
+                Ok(Ok(frame)) => {
                     let started = Instant::now();
-                    let encoded = view.format.encode(&image, view.quality);
+                    let encoded = view.format.encode(&frame.image, view.quality);
                     metrics.encode_seconds.observe(started.elapsed().as_secs_f64());
                     encoded.map(|bytes| Frame { bytes: Bytes::from(bytes), render_ms }).map_err(PoolError::from)
                 }
@@ -383,6 +447,21 @@ fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handl
             // The client may have left in the meantime; then nobody wants the frame.
             let _ = reply.send(result);
         });
+    }
+}
+
+/// What pixel `[x, y]` of a frame `width` pixels wide shows, from its read-back depth and ids.
+fn pick_at(frame: &crate::render::renderer::Frame, width: u32, [x, y]: [u32; 2]) -> Result<Pick, PoolError> {
+    let outside = PoolError::OutsideImage { x, y };
+    if x >= width {
+        return Err(outside);
+    }
+    let index = y as usize * width as usize + x as usize;
+    let depth = frame.depth.as_ref().and_then(|d| d.get(index).copied());
+    let object_id = frame.ids.as_ref().and_then(|ids| ids.get(index).copied());
+    match (depth, object_id) {
+        (Some(depth), Some(object_id)) => Ok(Pick { depth, object_id }),
+        _ => Err(outside),
     }
 }
 

@@ -73,6 +73,12 @@ impl SceneGeo {
         self.max
     }
 
+    /// Converts scene points to the scene CRS and to WGS 84 (for comments and their export).
+    pub fn locator(&self) -> Result<Locator<'_>, FieldError> {
+        let to_wgs84 = Transformer::new(&self.crs, &CrsDefinition::wgs84())?;
+        Ok(Locator { geo: self, to_wgs84 })
+    }
+
     /// Describes the extent in the scene CRS and in scene metres (for messages).
     pub fn describe(&self) -> String {
         let (x0, y0) = self.frame.to_crs(self.min[0], self.min[1]);
@@ -86,6 +92,32 @@ impl SceneGeo {
             self.min[1],
             self.max[1]
         )
+    }
+}
+
+/// A scene point in the scene CRS and in WGS 84.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Located {
+    /// `[x, y]` in the scene CRS (its units).
+    pub crs: [f64; 2],
+    /// `[longitude, latitude]` in WGS 84 degrees.
+    pub lon_lat: [f64; 2],
+}
+
+/// Converts scene metres to the scene CRS and WGS 84 ([`SceneGeo::locator`]).
+#[derive(Debug)]
+pub struct Locator<'a> {
+    geo: &'a SceneGeo,
+    to_wgs84: Transformer,
+}
+
+impl Locator<'_> {
+    /// The scene point (`x`, `y`) in the scene CRS and in WGS 84; `None` outside the CRS's
+    /// domain.
+    pub fn locate(&self, x: f64, y: f64) -> Option<Located> {
+        let (cx, cy) = self.geo.frame.to_crs(x, y);
+        let (lon, lat) = self.to_wgs84.transform(cx, cy)?;
+        Some(Located { crs: [cx, cy], lon_lat: [lon, lat] })
     }
 }
 

@@ -141,6 +141,16 @@ impl Camera {
         (self.view().inverse() * (view / view.w)).truncate()
     }
 
+    /// The world point seen at the centre of pixel (`column`, `row`) of a `width` × `height`
+    /// image (row 0 at the top) at linear depth `depth` (what the G-buffer holds there):
+    /// [`Camera::unproject`] at the pixel centre's normalized device coordinates.
+    pub fn pixel_point(&self, column: u32, row: u32, depth: f32, width: u32, height: u32) -> Vec3 {
+        let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+        let ndc_x = (column as f32 + 0.5) / w * 2.0 - 1.0;
+        let ndc_y = 1.0 - (row as f32 + 0.5) / h * 2.0;
+        self.unproject(ndc_x, ndc_y, depth, w / h)
+    }
+
     /// Checks that every number is finite, the field of view is within 1..=170 degrees and a
     /// plan view's width is positive.
     pub fn is_valid(&self) -> bool {
@@ -158,6 +168,25 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pixel_points_lie_on_the_pixel_ray_at_its_depth() {
+        let cam = Camera { roll: 7.0, ..Camera::perspective([10.0, 20.0, 105.0], 30.0, -12.0, 50.0) };
+        let (w, h) = (320, 240);
+        let target = Vec3::new(60.0, 110.0, 98.0);
+        let clip = cam.projection(w as f32 / h as f32) * cam.view() * target.extend(1.0);
+        let ndc = clip.truncate() / clip.w;
+        let column = ((ndc.x + 1.0) * 0.5 * w as f32 - 0.5).round() as u32;
+        let row = ((1.0 - ndc.y) * 0.5 * h as f32 - 0.5).round() as u32;
+        let depth = -(cam.view() * target.extend(1.0)).z;
+        let back = cam.pixel_point(column, row, depth, w, h);
+        // Within one pixel's footprint at that depth.
+        let footprint = depth * (cam.fov.to_radians() * 0.5).tan() * 2.0 / h as f32;
+        assert!((back - target).length() < footprint * 1.5, "{back} vs {target}");
+        let plan = Camera::plan(100.0, 50.0, 500.0, 200.0);
+        let centre = plan.pixel_point(99, 49, 480.0, 200, 100);
+        assert!((centre - Vec3::new(99.5, 50.5, 20.0)).length() < 1e-2, "{centre}");
+    }
 
     #[test]
     fn heading_follows_the_compass() {

@@ -27,6 +27,12 @@ pub struct SceneConfig {
     /// Upper bound on plants per layer; placement beyond it is an error.
     #[serde(default = "default_max_plants")]
     pub max_plants: usize,
+    /// `[participation]`: comment moderation and limits (the server reads it).
+    #[serde(default)]
+    pub participation: super::participation::ParticipationConfig,
+    /// `[[viewpoints]]`: named views for citizens and tours (the server reads them).
+    #[serde(default)]
+    pub viewpoints: Vec<super::participation::Viewpoint>,
 }
 
 impl SceneConfig {

@@ -5,6 +5,7 @@ pub mod camera_params;
 pub mod config;
 pub mod gltf_loader;
 pub mod mesh;
+pub mod participation;
 pub mod plan;
 pub mod plant;
 pub mod procedural;
