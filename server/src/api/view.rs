@@ -452,3 +452,22 @@ impl ViewRequest {
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_comparison_round_trips_through_a_link() {
+        let params = ViewParams::from_query("compare_layer=planned&split=0.25&width=64").expect("query");
+        assert_eq!(params.compare, Some(Compare { layer: "planned".into(), split: Some(0.25) }));
+        assert_eq!(ViewParams::from_query(&params.to_query()).expect("link"), params);
+        let hidden = ViewParams::from_query("compare_layer=planned").expect("query");
+        assert_eq!(hidden.compare, Some(Compare { layer: "planned".into(), split: None }));
+        let err = ViewParams::from_query("split=0.5").unwrap_err().to_string();
+        assert!(err.contains("compare_layer"), "{err}");
+        let layers = vec!["existing".to_owned(), "planned".to_owned()];
+        let unknown = check_compare(&Compare { layer: "meadow".into(), split: None }, &layers).unwrap_err();
+        assert!(unknown.to_string().contains("meadow") && unknown.to_string().contains("existing, planned"));
+    }
+}
