@@ -387,6 +387,11 @@ fn mass_alpha(in: VertexOut) -> f32 {
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     let frag = in.clip;
+    // A split view's "before" half: the compared layer's plants, leaves and masses are left
+    // out left of the line (`render::compare`); the terrain is never compared.
+    if SURFACE != 0u && frag.x < layer.hidden_left_of {
+        discard;
+    }
     let texel = textureSample(base_tex, base_sampler, in.uv) * material.base_color;
     let has_hlp = SURFACE >= 2u && in.hlp_depth_radius.y > 0.0;
     let image_space = select(layer.image_space != 0u, layer.terrain_strokes == TERRAIN_IMAGE, SURFACE == 0u);

@@ -406,6 +406,10 @@ fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handl
             let data = layers.view(&view.data, store)?;
             let (camera, style, width, height) = (&view.camera, view.frame_style(), view.width, view.height);
             let request = FrameRequest::new(camera, style, width, height).data(&data).read(read);
+            let request = match &view.compare {
+                Some(compare) => request.compare(compare),
+                None => request,
+            };
             let request = match session {
                 Some(id) => request.history(views.entry(id).or_insert_with(|| renderer.new_view_state())),
                 None => request,

@@ -6,9 +6,10 @@
 
 use super::error::ApiError;
 use crate::fields::Mapping;
-use crate::render::Style;
+use crate::render::compare::Compare;
 use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
 use crate::render::view_style::ViewStyle;
+use crate::render::{RenderError, Style};
 use crate::scene::Scene;
 use crate::scene::camera::{Camera, Projection};
 use crate::store::Store;
@@ -69,6 +70,11 @@ pub struct ViewParams {
     /// ISO 8601 time of the data layers (D5; default: each layer's first step).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<String>,
+    /// Before / after: `{"layer": "planned"}` shows the view without the vegetation layer
+    /// `planned`; with `"split": 0.5` the left half of the image without it, the right half
+    /// with it (the split 0…1 of the width from the left).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compare: Option<Compare>,
 }
 
 /// The query parameters of `GET /api/render`: [`ViewParams`] flattened (`x`, `y`, `z` for
@@ -137,6 +143,13 @@ pub struct RenderQuery {
     /// ISO 8601 time of the data layers.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<String>,
+    /// Before / after: the vegetation layer (the plan) the view is shown without.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compare_layer: Option<String>,
+    /// With `compare_layer`: the split 0…1 of the image width, left of it without the layer,
+    /// right of it with it (left out: without the layer everywhere).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub split: Option<f32>,
 }
 
 /// Limits a server puts on views.
@@ -186,6 +199,11 @@ impl ViewParams {
             ),
             None => None,
         };
+        let compare = match (q.compare_layer, q.split) {
+            (Some(layer), split) => Some(Compare { layer, split }),
+            (None, None) => None,
+            (None, Some(_)) => return Err(ApiError::bad("split", "split needs compare_layer: the layer to compare")),
+        };
         Ok(ViewParams {
             camera: CameraParams {
                 mode: q.mode,
@@ -207,6 +225,7 @@ impl ViewParams {
             layer_styles,
             mappings,
             time: q.time,
+            compare,
         })
     }
 
@@ -236,6 +255,8 @@ impl ViewParams {
             layer_styles: self.layer_styles.as_ref().and_then(|m| serde_json::to_string(m).ok()),
             mappings: self.mappings.as_ref().and_then(|m| serde_json::to_string(m).ok()),
             time: self.time.clone(),
+            compare_layer: self.compare.as_ref().map(|c| c.layer.clone()),
+            split: self.compare.as_ref().and_then(|c| c.split),
         };
         serde_urlencoded::to_string(&query).expect("flat query parameters always URL-encode")
     }
@@ -262,6 +283,9 @@ impl ViewParams {
         let quality = (format == ImageFormat::Jpeg).then_some(quality);
         let styles = self.view_style().resolve(&scene.layer_names())?;
         let data = DataRequest::resolve(self.mappings.as_deref().unwrap_or_default(), self.time.as_deref(), store)?;
+        if let Some(compare) = &self.compare {
+            check_compare(compare, &scene.layer_names())?;
+        }
         Ok(ViewRequest {
             camera,
             width,
@@ -271,6 +295,7 @@ impl ViewParams {
             style: styles.base,
             layer_styles: styles.layers,
             data,
+            compare: self.compare.clone(),
         })
     }
 
@@ -282,6 +307,19 @@ impl ViewParams {
             layer_styles: self.layer_styles.clone().unwrap_or_default(),
         }
     }
+}
+
+/// Checks a before/after comparison against the scene's vegetation layers `layers`: an
+/// unknown layer is a 422 naming it and the scene's layers (`compare.layer`), a split outside
+/// 0…1 a 422 naming `compare.split`.
+pub fn check_compare(compare: &Compare, layers: &[String]) -> Result<(), ApiError> {
+    compare.check(layers).map(|_| ()).map_err(|e| {
+        let parameter = match e {
+            RenderError::Compare(_) if compare.split.is_some() => "compare.split",
+            _ => "compare.layer",
+        };
+        ApiError::invalid(parameter, e.to_string())
+    })
 }
 
 /// Parses the JSON text of the query parameter `parameter`: malformed JSON is a 400 saying
@@ -353,6 +391,9 @@ pub struct ViewRequest {
     /// Data layers and time (absent from the JSON, so the ETag, when there are none).
     #[serde(skip_serializing_if = "DataRequest::is_empty")]
     pub data: DataRequest,
+    /// Before / after (absent from the JSON, so the ETag, when there is none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compare: Option<Compare>,
 }
 
 impl ViewRequest {
@@ -395,6 +436,7 @@ impl ViewRequest {
             layer_styles: Some(styles.layer_styles).filter(|m| !m.is_empty()),
             mappings: Some(self.data.mappings.clone()).filter(|m| !m.is_empty()),
             time: self.data.time.clone(),
+            compare: self.compare.clone(),
         }
     }
 
@@ -409,4 +451,23 @@ impl ViewRequest {
 /// Lower-case hexadecimal digits of `bytes`.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_comparison_round_trips_through_a_link() {
+        let params = ViewParams::from_query("compare_layer=planned&split=0.25&width=64").expect("query");
+        assert_eq!(params.compare, Some(Compare { layer: "planned".into(), split: Some(0.25) }));
+        assert_eq!(ViewParams::from_query(&params.to_query()).expect("link"), params);
+        let hidden = ViewParams::from_query("compare_layer=planned").expect("query");
+        assert_eq!(hidden.compare, Some(Compare { layer: "planned".into(), split: None }));
+        let err = ViewParams::from_query("split=0.5").unwrap_err().to_string();
+        assert!(err.contains("compare_layer"), "{err}");
+        let layers = vec!["existing".to_owned(), "planned".to_owned()];
+        let unknown = check_compare(&Compare { layer: "meadow".into(), split: None }, &layers).unwrap_err();
+        assert!(unknown.to_string().contains("meadow") && unknown.to_string().contains("existing, planned"));
+    }
 }

@@ -22,12 +22,13 @@ use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
 use super::routes::{CameraInfo, pool_error};
 use super::view::{
-    CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, image_format,
-    image_side, jpeg_quality,
+    CameraParams, DEFAULT_JPEG_QUALITY, ImageFormat, RenderQuery, Source, ViewParams, ViewRequest, check_compare,
+    image_format, image_side, jpeg_quality,
 };
 use super::{AppState, Ready};
 use crate::fields::Mapping;
 use crate::render::Style;
+use crate::render::compare::Compare;
 use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
 use crate::render::view_style::ViewStyle;
 use crate::scene::camera::Camera;
@@ -160,6 +161,17 @@ pub enum ClientMessage {
     Rejoin,
     /// Plays, steps through or stops a tour of viewpoints.
     Tour(TourControl),
+    /// Before / after: shows the view without the vegetation layer `layer` (the plan), or
+    /// with `split` (0…1 of the width) without it left of the split and with it right of it;
+    /// `layer` left out (or null) ends the comparison. Answered by a `compare` message.
+    Compare {
+        /// The compared layer; none: no comparison.
+        #[serde(default)]
+        layer: Option<String>,
+        /// The split position, 0…1 of the image width from the left.
+        #[serde(default)]
+        split: Option<f32>,
+    },
     /// Asks for a `pong` with the same `id`.
     Ping {
         /// Any JSON value, echoed.
@@ -279,6 +291,13 @@ pub enum ServerMessage {
     /// Comments, layers, viewpoints or art maps changed (`what`); see the guide's
     /// "Participation" chapter.
     Changed(Changed),
+    /// Answer to a `compare` control: the comparison the session renders now.
+    Compare {
+        /// The compared layer (null: none).
+        layer: Option<String>,
+        /// The split position (null: the layer hidden in the whole view).
+        split: Option<f32>,
+    },
     /// Answer to `ping`.
     Pong {
         /// The ping's `id`.
@@ -437,6 +456,7 @@ struct View {
     format: ImageFormat,
     quality: u8,
     data: DataRequest,
+    compare: Option<Compare>,
 }
 
 struct InFlight {
@@ -510,6 +530,7 @@ impl<'a> Session<'a> {
                 format: initial.format,
                 quality: initial.quality.unwrap_or(DEFAULT_JPEG_QUALITY),
                 data: initial.data,
+                compare: initial.compare,
             },
             seq: 0,
             frame_id: 0,
@@ -711,6 +732,13 @@ impl<'a> Session<'a> {
                         Some(ServerMessage::Style { style: styles.base.clone(), layer_styles: styles.layers.clone() });
                 })
             }
+            ClientMessage::Compare { layer, split } => self.set_compare(layer, split).map(|()| {
+                let compare = self.view.compare.as_ref();
+                answer = Some(ServerMessage::Compare {
+                    layer: compare.map(|c| c.layer.clone()),
+                    split: compare.and_then(|c| c.split),
+                });
+            }),
             ClientMessage::Size { width, height } => self.set_size(width, height),
             ClientMessage::Quality { format, quality } => self.set_quality(format.as_deref(), quality),
         };
@@ -784,6 +812,19 @@ impl<'a> Session<'a> {
         Ok(&self.view.styles)
     }
 
+    fn set_compare(&mut self, layer: Option<String>, split: Option<f32>) -> Result<(), ApiError> {
+        let compare = match (layer, split) {
+            (Some(layer), split) => Some(Compare { layer, split }),
+            (None, None) => None,
+            (None, Some(_)) => return Err(ApiError::invalid("split", "split needs layer: the layer to compare")),
+        };
+        if let Some(compare) = &compare {
+            check_compare(compare, &self.ready.scene.layer_names())?;
+        }
+        self.view.compare = compare;
+        Ok(())
+    }
+
     fn set_size(&mut self, width: u32, height: u32) -> Result<(), ApiError> {
         let config = self.state.config();
         let width = image_side("width", width, config.max_width)?;
@@ -824,6 +865,7 @@ impl<'a> Session<'a> {
                 style: v.styles.base.clone(),
                 layer_styles: v.styles.layers.clone(),
                 data: v.data.clone(),
+                compare: v.compare.clone(),
             },
             kind,
         )

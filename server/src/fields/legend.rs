@@ -317,8 +317,9 @@ fn over_white(c: [u8; 4], opacity: f32) -> [u8; 4] {
     [mix(c[0]), mix(c[1]), mix(c[2]), 255]
 }
 
-/// An RGBA image that `embedded-graphics` can draw text on.
-struct Canvas(RgbaImage);
+/// An RGBA image that `embedded-graphics` can draw text on (also the comment pins' glyph
+/// atlas, `render::marks`).
+pub(crate) struct Canvas(pub(crate) RgbaImage);
 
 impl Canvas {
     fn put(&mut self, x: i32, y: i32, c: [u8; 4]) {

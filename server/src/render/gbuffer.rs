@@ -1,6 +1,7 @@
 //! Stage one: the G-buffer (multiple render targets) and the geometry pass that fills it.
 
 use super::bind_layouts::{storage_entry, texture_entry, uniform_entry};
+use super::compare::Split;
 use super::layer_code::LayerCode;
 use super::style::{HatchSpace, STYLE_SLOTS, Style};
 use super::uniforms::{self, Declarations, Mat4f, Vec2f, Vec3f, Vec4f, Wgsl, gpu_block};
@@ -122,12 +123,19 @@ gpu_block! {
 pub const LAYER_STRIDE: u64 = 256;
 
 /// The [`LayerStyle`] of every style slot at [`LAYER_STRIDE`] (see
-/// [`super::style::FrameStyle::slots`]); slots beyond `slots` take the default style.
-pub fn layer_uniforms(slots: &[Style]) -> Vec<u8> {
+/// [`super::style::FrameStyle::slots`]); slots beyond `slots` take the default style. The
+/// slot of a split view's layer starts at the split line ([`Split`]).
+pub fn layer_uniforms(slots: &[Style], split: Option<Split>) -> Vec<u8> {
     let mut bytes = vec![0u8; STYLE_SLOTS * LAYER_STRIDE as usize];
     let default = Style::default();
     for (slot, chunk) in bytes.chunks_exact_mut(LAYER_STRIDE as usize).enumerate() {
-        let layer = uniforms::bytes(&LayerStyle::new(slots.get(slot).unwrap_or(&default)));
+        let mut layer = LayerStyle::new(slots.get(slot).unwrap_or(&default));
+        if let Some(Split { slot: split_slot, x: Some(x) }) = split
+            && split_slot == slot
+        {
+            layer.hidden_left_of = x;
+        }
+        let layer = uniforms::bytes(&layer);
         chunk[..layer.len()].copy_from_slice(&layer);
     }
     bytes
@@ -171,6 +179,9 @@ gpu_block! {
         /// Ink of a vegetation mass's outline: the style's contour strength (the masses' edges
         /// are too shallow in depth for the contour pass far away).
         pub mass_outline: f32,
+        /// Pixels left of this x (from the left edge) draw none of the layer: the "before"
+        /// half of a split view ([`super::compare`]); 0 draws it everywhere.
+        pub hidden_left_of: f32,
     }
 }
 
@@ -194,6 +205,7 @@ impl LayerStyle {
             implicit_normals: style.implicit_normals,
             ambient_occlusion: style.ambient_occlusion,
             mass_outline: style.contour_strength,
+            hidden_left_of: 0.0,
         }
     }
 }

@@ -7,10 +7,12 @@ pub mod artmaps;
 pub mod bake;
 pub mod bind_layouts;
 pub mod coherence;
+pub mod compare;
 pub mod device;
 pub mod gbuffer;
 pub mod image_format;
 pub mod layer_code;
+pub mod marks;
 pub mod parametrization;
 pub mod passes;
 pub mod presets;
@@ -74,6 +76,13 @@ pub enum RenderError {
     /// A per-layer style for a layer the scene does not have.
     #[error("style layer `{}` is not a layer of this scene; layers: {known}", crate::echo::echo(.name))]
     UnknownLayer { name: String, known: String },
+    /// A before/after comparison of a layer the scene does not have among its vegetation
+    /// layers.
+    #[error("compare layer `{}` is not a vegetation layer of this scene; layers: {known}", crate::echo::echo(.name))]
+    CompareLayer { name: String, known: String },
+    /// A before/after comparison that cannot be drawn (a split outside the image).
+    #[error("compare: {0}")]
+    Compare(String),
     /// A per-layer style for a vegetation layer beyond the style slots.
     #[error(
         "style layer `{}`: only the first {max} vegetation layers can have styles of their own",

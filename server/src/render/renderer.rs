@@ -3,7 +3,9 @@
 //! read-back of what the request asks for.
 
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
+use super::compare::{Compare, Split};
 use super::gbuffer::{GeometryFrame, GeometryPass, LayerStyle, layer_uniforms, render_target};
+use super::marks::{GlyphAtlas, Marks, Pin};
 use super::parametrization::ReferenceCoords;
 use super::passes::pipeline::FrameContext;
 use super::passes::post_block::{PostStyle, Styles};
@@ -42,6 +44,9 @@ pub struct Renderer {
     sun: glam::Vec3,
     /// Names of the scene's vegetation layers, in layer-code order (per-layer styles).
     layer_names: Vec<String>,
+    /// The digits of the pins' heads, and their texture.
+    glyphs: GlyphAtlas,
+    glyph_texture: wgpu::TextureView,
 }
 
 /// A wgpu error with all its causes on one line.
@@ -116,6 +121,10 @@ pub struct FrameRequest<'a> {
     /// Time every pass ([`Frame::times`]): slower than a plain frame, because each pass waits
     /// for the previous one; for the benchmark.
     pub profile: bool,
+    /// Comment pins drawn in the view (none: the marks pass does not run for them).
+    pub pins: &'a [Pin],
+    /// A before/after comparison: a layer hidden, in the whole view or left of a split.
+    pub compare: Option<&'a Compare>,
 }
 
 impl<'a> FrameRequest<'a> {
@@ -131,7 +140,19 @@ impl<'a> FrameRequest<'a> {
             history: None,
             read: Readback::default(),
             profile: false,
+            pins: &[],
+            compare: None,
         }
+    }
+
+    /// With comment pins at their world points.
+    pub fn pins(self, pins: &'a [Pin]) -> FrameRequest<'a> {
+        FrameRequest { pins, ..self }
+    }
+
+    /// Comparing before and after: without `compare.layer`, or split at `compare.split`.
+    pub fn compare(self, compare: &'a Compare) -> FrameRequest<'a> {
+        FrameRequest { compare: Some(compare), ..self }
     }
 
     /// With the data layers of `data`.
@@ -176,6 +197,8 @@ struct PostFrame<'a> {
     /// Targets read in place of the outputs of passes that did not run
     /// ([`super::passes::PostPassDecl::bypass`]).
     bypass: Vec<(Target, Target)>,
+    /// The marks pass's block, when the frame has pins or a split line.
+    marks: Option<&'a wgpu::Buffer>,
 }
 
 impl Renderer {
@@ -190,7 +213,10 @@ impl Renderer {
         options.lod.validate().map_err(RenderError::Options)?;
         let geometry = GeometryPass::new(&gpu.device);
         let scene_gpu = SceneGpu::new(&gpu, &geometry, scene, options.cache.as_deref())?;
+        let glyphs = GlyphAtlas::digits();
         Ok(Renderer {
+            glyph_texture: glyphs.upload(&gpu.device, &gpu.queue),
+            glyphs,
             sun: scene.sun.direction(),
             layer_names: scene.layers.iter().map(|l| l.name.clone()).collect(),
             passes: POST_PASSES.iter().map(|decl| PostPass::new(&gpu.device, decl)).collect(),
@@ -212,7 +238,7 @@ impl Renderer {
     /// detail, triangles submitted and the source geometry: the seeds' Table 8.1 figures),
     /// without drawing.
     pub fn draw_stats(&self, request: &FrameRequest<'_>) -> Result<DrawStats, RenderError> {
-        let slots = self.check(&request.style, request.width, request.height)?;
+        let (slots, _) = self.frame_slots(request)?;
         let size = (request.width, request.height);
         let drawn_as = |id| LayerDraw::from(&slots[style_slot(id)]);
         Ok(self.scene.cull(request.camera, size, &self.lod, drawn_as, |_, _| [0.0; 2]).stats)
@@ -264,12 +290,24 @@ impl Renderer {
         styles.slots(&self.layer_names)
     }
 
-    /// Binds the frame uniforms of `camera` with the styles of `slots` and the reference
-    /// coordinates `references` (see [`SceneGpu::upload`]).
+    /// The resolved style of every slot of `request` with its comparison applied, and where
+    /// the compared layer starts (see [`Compare::apply`]).
+    fn frame_slots(&self, request: &FrameRequest<'_>) -> Result<(Vec<Style>, Option<Split>), RenderError> {
+        let mut slots = self.check(&request.style, request.width, request.height)?;
+        let split = match request.compare {
+            Some(compare) => Some(compare.apply(&mut slots, &self.layer_names, request.width)?),
+            None => None,
+        };
+        Ok((slots, split))
+    }
+
+    /// Binds the frame uniforms of `camera` with the styles of `slots` (the compared layer
+    /// starting at `split`) and the reference coordinates `references` (see
+    /// [`SceneGpu::upload`]).
     fn frame_bind_group(
         &self,
         camera: &Camera,
-        slots: &[Style],
+        (slots, split): (&[Style], Option<Split>),
         width: u32,
         height: u32,
         references: &wgpu::Buffer,
@@ -282,7 +320,7 @@ impl Renderer {
         });
         let layer_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("layers"),
-            contents: &layer_uniforms(slots),
+            contents: &layer_uniforms(slots, split),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -315,17 +353,17 @@ impl Renderer {
 
     /// Renders the frame `request` asks for (see [`FrameRequest`]).
     pub fn render(&self, mut request: FrameRequest<'_>) -> Result<Frame, RenderError> {
-        let slots = self.check(&request.style, request.width, request.height)?;
+        let (slots, split) = self.frame_slots(&request)?;
         if let Some(data) = request.data {
             ProjectionPass::check(data)?;
         }
         self.scoped(|| {
             if request.profile {
                 let mut times = PassTimes::new();
-                let frame = self.render_frame(&mut request, &slots, Some(&mut times))?;
+                let frame = self.render_frame(&mut request, (&slots, split), Some(&mut times))?;
                 return Ok(Frame { times: Some(times), ..frame });
             }
-            self.sampled(|times| self.render_frame(&mut request, &slots, times))
+            self.sampled(|times| self.render_frame(&mut request, (&slots, split), times))
         })
     }
 
@@ -345,7 +383,7 @@ impl Renderer {
             mapped_at_creation: false,
         });
         let inputs = self.copy.bind_group(device, &uniform, &[wgpu::BindingResource::TextureView(&source)]);
-        let context = FrameContext { device, spec: Specialization::default(), depth: None };
+        let context = FrameContext { device, spec: Specialization::default(), depth: None, marks: 0 };
         self.scoped(|| {
             (0..runs.max(1) + 1)
                 .map(|_| {
@@ -413,6 +451,11 @@ impl Renderer {
             Resource::TamSampler => wgpu::BindingResource::Sampler(&self.art.tam_sampler),
             Resource::SamSampler => wgpu::BindingResource::Sampler(&self.art.sam_sampler),
             Resource::HatchColors => self.projection.hatch_colors().as_entire_binding(),
+            Resource::Glyphs => view(&self.glyph_texture),
+            Resource::Marks => frame.marks.map(wgpu::Buffer::as_entire_binding).ok_or(RenderError::Gpu {
+                stage: "frame",
+                message: "the marks block is read while no marks are drawn".into(),
+            })?,
             other => {
                 frame.data.and_then(|data| self.projection.resource(data, other)).ok_or_else(|| RenderError::Gpu {
                     stage: "frame",
@@ -425,7 +468,7 @@ impl Renderer {
     fn render_frame(
         &self,
         request: &mut FrameRequest<'_>,
-        slots: &[Style],
+        (slots, split): (&[Style], Option<Split>),
         times: Option<&mut PassTimes>,
     ) -> Result<Frame, RenderError> {
         let device = &self.gpu.device;
@@ -446,11 +489,16 @@ impl Renderer {
         });
         let layer_tams = slots.iter().any(|s| s.hatch_map != style.hatch_map);
         let data_runs = ProjectionPass::writes(data, layer_tams);
+        // The pins and the split line, over the composed image.
+        let split_x = split.and_then(|s| s.x);
+        let marks = (!request.pins.is_empty() || split_x.is_some())
+            .then(|| Marks::new(camera, (width, height), request.pins, split_x, &self.glyphs));
         // Pipelines specialised for what this frame's styles and data need.
         let context = FrameContext {
             device,
             spec: Specialization::for_frame(&params, data.has_hatch_colors(), data_runs),
             depth: Some(&targets.gbuffer.depth),
+            marks: marks.as_ref().map_or(0, |m| m.instances()),
         };
         let post_buffers: Vec<wgpu::Buffer> = (0..sams.len())
             .map(|group| {
@@ -481,20 +529,28 @@ impl Renderer {
             state.references.update(visible.references(), center, parent, eye, slots[0].hatch_tiles)
         });
         let references = self.scene.upload(device, &self.gpu.queue, &visible, uvs.as_deref());
-        let frame = self.frame_bind_group(camera, slots, width, height, &references);
+        let frame = self.frame_bind_group(camera, (slots, split), width, height, &references);
         recorder.mark("cull")?;
         self.geometry.encode(recorder.encoder(), &targets.gbuffer, &frame, &self.scene, &visible);
         recorder.mark("geometry")?;
 
         let inputs = DataInputs { camera, width, height, tams: self.art.tams.len(), layer_tams };
         let data_frame = if data_runs { self.projection.prepare(&self.gpu, &inputs, data)? } else { None };
-        let mut post = PostFrame { targets, data: data_frame.as_ref(), bypass: Vec::new() };
+        let marks = marks.map(|block| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("marks"),
+                contents: &uniforms::bytes(block.as_ref()),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        });
+        let mut post = PostFrame { targets, data: data_frame.as_ref(), bypass: Vec::new(), marks: marks.as_ref() };
         for pass in &self.passes {
             let decl = pass.decl();
             let runs = match decl.runs {
                 When::Always => true,
                 When::Prefilter => style.contour_prefilter,
                 When::DataLayers => data_runs,
+                When::Marks => post.marks.is_some(),
             };
             if !runs {
                 post.bypass.extend(decl.bypass.map(|to| (decl.output, to)));

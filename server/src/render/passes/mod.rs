@@ -4,13 +4,16 @@
 //! [`POST_PASSES`] in order over the named [`Target`]s. Binding indices and the shaders'
 //! `@binding` declarations both come from the order of a declaration's inputs
 //! ([`PostPassDecl::shader_source`], [`pipeline::PostPass::new`]), so a new pass is a WGSL
-//! file plus one declaration here (see the guide's architecture chapter).
+//! file plus one declaration here (see the guide's architecture chapter). Most passes draw the
+//! full-screen triangle; the marks pass ([`MARKS`]) draws instanced quads over the output
+//! ([`Draws`]).
 
 pub mod pipeline;
 pub mod post_block;
 pub mod targets;
 
 use crate::render::layer_code::LayerCode;
+use crate::render::marks::Marks;
 use crate::render::projection::{DataBlock, HatchColors};
 use crate::render::uniforms::Declarations;
 pub use pipeline::{Gate, PostPass, Specialization};
@@ -97,6 +100,10 @@ pub enum Resource {
     FieldUpper(usize),
     /// The colour table of data mapping slot `i`.
     FieldColors(usize),
+    /// The marks pass's own block: the frame's pins and split line ([`Marks`]).
+    Marks,
+    /// The digits of the pins' heads ([`crate::render::marks::GlyphAtlas`]).
+    Glyphs,
 }
 
 /// How a shader reads a binding.
@@ -121,14 +128,17 @@ impl Resource {
     pub fn kind(self) -> BindingKind {
         match self {
             Resource::Target(Target::Ids | Target::DataLayers) => BindingKind::Uint,
-            Resource::Target(_) | Resource::FieldLower(_) | Resource::FieldUpper(_) | Resource::FieldColors(_) => {
-                BindingKind::Float
-            }
+            Resource::Target(_)
+            | Resource::FieldLower(_)
+            | Resource::FieldUpper(_)
+            | Resource::FieldColors(_)
+            | Resource::Glyphs => BindingKind::Float,
             Resource::Tams => BindingKind::FilteredArray,
             Resource::Sam => BindingKind::Filtered,
             Resource::TamSampler | Resource::SamSampler => BindingKind::Sampler,
             Resource::HatchColors => BindingKind::Uniform("HatchColors"),
             Resource::DataBlock => BindingKind::Uniform("DataBlock"),
+            Resource::Marks => BindingKind::Uniform("Marks"),
         }
     }
 
@@ -137,6 +147,7 @@ impl Resource {
         match self {
             Resource::HatchColors => Declarations::of::<HatchColors>(),
             Resource::DataBlock => Declarations::of::<DataBlock>(),
+            Resource::Marks => Declarations::of::<Marks>(),
             _ => String::new(),
         }
     }
@@ -160,6 +171,18 @@ pub enum When {
     Prefilter,
     /// When the frame has data layers to project (or style layers with TAMs of their own).
     DataLayers,
+    /// When the frame has pins or a split line to draw.
+    Marks,
+}
+
+/// What a pass draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Draws {
+    /// The full-screen triangle (`vs_fullscreen`), replacing what its output held.
+    Fullscreen,
+    /// Six vertices per instance from the named vertex entry point, one instance per mark of
+    /// the frame ([`Marks::instances`]), blended over the output it keeps.
+    Marks(&'static str),
 }
 
 /// One post-processing pass, declared once.
@@ -183,6 +206,8 @@ pub struct PostPassDecl {
     pub bypass: Option<Target>,
     /// Whether the pass runs once per art-map group, each over the last (compose).
     pub per_art_group: bool,
+    /// What it draws.
+    pub draws: Draws,
 }
 
 const FULLSCREEN: &str = include_str!("../../../../shaders/fullscreen.wgsl");
@@ -246,6 +271,7 @@ pub const PREFILTER: PostPassDecl = PostPassDecl {
     runs: When::Prefilter,
     bypass: Some(Target::LinearDepth),
     per_art_group: false,
+    draws: Draws::Fullscreen,
 };
 
 /// The contour and tone pass (`shaders/contour.wgsl`, thesis eq. 5.1, 6.7), on pixels with
@@ -266,6 +292,7 @@ pub const CONTOUR: PostPassDecl = PostPassDecl {
     runs: When::Always,
     bypass: None,
     per_art_group: false,
+    draws: Draws::Fullscreen,
 };
 
 /// The horizontal half of the tone blur (`shaders/tone_blur.wgsl`, thesis Fig. 6.9d).
@@ -279,6 +306,7 @@ pub const TONE_BLUR: PostPassDecl = PostPassDecl {
     runs: When::Always,
     bypass: None,
     per_art_group: false,
+    draws: Draws::Fullscreen,
 };
 
 /// D2–D5: data layers projected onto the landscape (`shaders/data.wgsl`, thesis 9.3;
@@ -306,6 +334,7 @@ pub const DATA: PostPassDecl = PostPassDecl {
     runs: When::DataLayers,
     bypass: None,
     per_art_group: false,
+    draws: Draws::Fullscreen,
 };
 
 /// The compose pass (`shaders/data_common.wgsl` + `shaders/compose.wgsl`: eq. 5.2, vertical
@@ -340,10 +369,31 @@ pub const COMPOSE: PostPassDecl = PostPassDecl {
     runs: When::Always,
     bypass: None,
     per_art_group: true,
+    draws: Draws::Fullscreen,
+};
+
+/// The marks pass (`shaders/marks.wgsl`): comment pins, numbered, standing at their world
+/// points and hidden where the scene's depth puts terrain or plants in front of them, and the
+/// pen line of a split view ([`crate::render::marks`]); over the composed image.
+pub const MARKS: PostPassDecl = PostPassDecl {
+    name: "marks",
+    shader: include_str!("../../../../shaders/marks.wgsl"),
+    entry_points: &[("fs_marks", Gate::None)],
+    inputs: &[
+        input("marks", Resource::Marks),
+        target("depth_tex", Target::LinearDepth),
+        input("glyphs", Resource::Glyphs),
+    ],
+    output: Target::Output,
+    clear: TRANSPARENT,
+    runs: When::Marks,
+    bypass: None,
+    per_art_group: false,
+    draws: Draws::Marks("vs_marks"),
 };
 
 /// The post passes of a frame, in the order they run after the geometry pass.
-pub const POST_PASSES: [&PostPassDecl; 5] = [&PREFILTER, &CONTOUR, &TONE_BLUR, &DATA, &COMPOSE];
+pub const POST_PASSES: [&PostPassDecl; 6] = [&PREFILTER, &CONTOUR, &TONE_BLUR, &DATA, &COMPOSE, &MARKS];
 
 /// A plain copy of the output (`shaders/copy.wgsl`): the cheapest possible full-screen pass,
 /// the floor the benchmark compares the NPR passes with; not part of a frame.
@@ -357,6 +407,7 @@ pub const COPY: PostPassDecl = PostPassDecl {
     runs: When::Always,
     bypass: None,
     per_art_group: false,
+    draws: Draws::Fullscreen,
 };
 
 #[cfg(test)]

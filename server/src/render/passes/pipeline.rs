@@ -2,7 +2,7 @@
 //! declaration's inputs, its shader compiled once, and pipelines specialised per frame.
 
 use super::post_block::PostStyle;
-use super::{BindingKind, PostPassDecl};
+use super::{BindingKind, Draws, PostPassDecl};
 use crate::render::bind_layouts::{texture_entry, uniform_layout_entry};
 use crate::render::gbuffer::DEPTH_FORMAT;
 use std::collections::HashMap;
@@ -84,6 +84,7 @@ pub(crate) struct Variants {
     shader: wgpu::ShaderModule,
     layout: wgpu::BindGroupLayout,
     output: wgpu::TextureFormat,
+    draws: Draws,
     cache: Mutex<HashMap<(&'static str, Gate, Specialization), wgpu::RenderPipeline>>,
 }
 
@@ -98,7 +99,7 @@ impl Variants {
         entries.extend(decl.inputs.iter().enumerate().map(|(i, b)| b.reads.kind().layout_entry(i as u32 + 1)));
         let layout =
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries });
-        Variants { label, shader, layout, output: decl.output_format(), cache: Mutex::default() }
+        Variants { label, shader, layout, output: decl.output_format(), draws: decl.draws, cache: Mutex::default() }
     }
 
     fn get(
@@ -113,13 +114,13 @@ impl Variants {
             .entry((entry_point, gate, spec))
             .or_insert_with(|| {
                 let constants = spec.constants();
-                fullscreen_pipeline(
+                post_pipeline(
                     device,
                     self.label,
                     &self.shader,
                     &self.layout,
                     (entry_point, &constants),
-                    self.output,
+                    (self.output, self.draws),
                     gate,
                 )
             })
@@ -137,6 +138,8 @@ pub struct FrameContext<'a> {
     pub spec: Specialization,
     /// The G-buffer depth (needed by gated passes only).
     pub depth: Option<&'a wgpu::TextureView>,
+    /// Instances of a [`Draws::Marks`] pass ([`crate::render::marks::Marks::instances`]).
+    pub marks: u32,
 }
 
 /// How a full-screen draw is limited to part of the image by the G-buffer's depth (reverse Z:
@@ -172,17 +175,22 @@ impl Gate {
     }
 }
 
-/// A pipeline drawing the full-screen triangle with `entry_point` into `output`, limited by
-/// `gate`, with values for the shader's override constants.
-fn fullscreen_pipeline(
+/// A pipeline drawing what `draws` says with `entry_point` into `output`, limited by `gate`,
+/// with values for the shader's override constants: the full-screen triangle written as is,
+/// or marks blended over the output (alpha over; the output stays opaque).
+fn post_pipeline(
     device: &wgpu::Device,
     label: &'static str,
     shader: &wgpu::ShaderModule,
     layout: &wgpu::BindGroupLayout,
     (entry_point, constants): (&str, &[(&str, f64)]),
-    output: wgpu::TextureFormat,
+    (output, draws): (wgpu::TextureFormat, Draws),
     gate: Gate,
 ) -> wgpu::RenderPipeline {
+    let (vertex, blend) = match draws {
+        Draws::Fullscreen => ("vs_fullscreen", None),
+        Draws::Marks(vertex) => (vertex, Some(wgpu::BlendState::ALPHA_BLENDING)),
+    };
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
         bind_group_layouts: &[Some(layout)],
@@ -193,7 +201,7 @@ fn fullscreen_pipeline(
         layout: Some(&pipeline_layout),
         vertex: wgpu::VertexState {
             module: shader,
-            entry_point: Some("vs_fullscreen"),
+            entry_point: Some(vertex),
             compilation_options: Default::default(),
             buffers: &[],
         },
@@ -204,27 +212,23 @@ fn fullscreen_pipeline(
             module: shader,
             entry_point: Some(entry_point),
             compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
-            targets: &[Some(wgpu::ColorTargetState {
-                format: output,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
+            targets: &[Some(wgpu::ColorTargetState { format: output, blend, write_mask: wgpu::ColorWrites::ALL })],
         }),
         multiview_mask: None,
         cache: None,
     })
 }
 
-/// Records one render pass over `target` (cleared or loaded) that draws the full-screen
-/// triangle with each pipeline in turn; `depth` is the G-buffer depth that gated pipelines
-/// test against (read only).
-fn record_fullscreen(
+/// Records one render pass over `target` (cleared or loaded) that draws `vertices` ×
+/// `instances` (the full-screen triangle, or the frame's marks) with each pipeline in turn;
+/// `depth` is the G-buffer depth that gated pipelines test against (read only).
+fn record_post(
     encoder: &mut wgpu::CommandEncoder,
     label: &'static str,
     (target, load): (&wgpu::TextureView, wgpu::LoadOp<wgpu::Color>),
     depth: Option<&wgpu::TextureView>,
     bind_group: &wgpu::BindGroup,
-    pipelines: &[&wgpu::RenderPipeline],
+    (pipelines, vertices, instances): (&[&wgpu::RenderPipeline], u32, u32),
 ) {
     let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
@@ -246,7 +250,7 @@ fn record_fullscreen(
     pass.set_bind_group(0, bind_group, &[]);
     for pipeline in pipelines {
         pass.set_pipeline(pipeline);
-        pass.draw(0..3, 0..1);
+        pass.draw(0..vertices, 0..instances);
     }
 }
 
@@ -286,8 +290,8 @@ impl PostPass {
     }
 
     /// Records the pass over `target`: cleared to the declaration's colour when `clear`, drawn
-    /// over otherwise (the later art-map groups of compose), each entry point with the
-    /// pipeline for the frame's specialisation.
+    /// over otherwise (the later art-map groups of compose, and always for marks), each entry
+    /// point with the pipeline for the frame's specialisation.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -304,9 +308,13 @@ impl PostPass {
             .collect();
         let gated = self.decl.entry_points.iter().any(|(_, gate)| *gate != Gate::None);
         let depth = if gated { frame.depth } else { None };
+        let (vertices, instances, clear) = match self.decl.draws {
+            Draws::Fullscreen => (3, 1, clear),
+            Draws::Marks(_) => (6, frame.marks, false),
+        };
         let load = if clear { wgpu::LoadOp::Clear(self.decl.clear) } else { wgpu::LoadOp::Load };
         let pipelines: Vec<&wgpu::RenderPipeline> = pipelines.iter().collect();
-        record_fullscreen(encoder, self.decl.name, (target, load), depth, bind_group, &pipelines);
+        record_post(encoder, self.decl.name, (target, load), depth, bind_group, (&pipelines, vertices, instances));
     }
 }
 
