@@ -12,6 +12,7 @@
 
 use super::auth::Admin;
 use super::error::{ApiError, ErrorBody};
+use super::events::LiveEvent;
 use super::pool::{ArtChange, PoolError, RenderPool};
 use super::routes::pool_error;
 use super::view::hex;
@@ -259,6 +260,12 @@ impl ArtMaps {
 }
 
 /// Tone levels of the renderer's TAMs (what an uploaded strip is cut into).
+/// Tells every WebSocket session how many art maps there are now.
+fn publish_counts(state: &AppState, art: &ArtMaps) {
+    let (tams, sams) = art.counts();
+    state.publish(LiveEvent::ArtMaps { tams, sams });
+}
+
 fn tam_levels(maps: &ArtMapSet) -> usize {
     maps.tams.first().map_or(1, |t| t.levels.len())
 }
@@ -429,6 +436,7 @@ pub async fn put(
     let digest: [u8; 32] = Sha256::digest(&body).into();
     persist(ready, undo(kind, index, previous.clone()), move || store.save_art_map(kind, index, &body)).await?;
     art.commit(ready, maps, Committed { kind, index, upload: Some(digest) });
+    publish_counts(&state, art);
     let info = art.list();
     let listed = match kind {
         ArtKind::Tam => info.tams,
@@ -486,6 +494,7 @@ pub async fn delete(
     let store = state.store().clone();
     persist(ready, ArtChange::Set { index, map: previous }, move || store.delete_art_map(kind, index)).await?;
     art.commit(ready, maps, Committed { kind, index, upload: None });
+    publish_counts(&state, art);
     Ok(StatusCode::NO_CONTENT)
 }
 

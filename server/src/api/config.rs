@@ -18,6 +18,11 @@ pub struct ServerConfig {
     /// Directory for server data (uploaded layers); created when missing.
     #[arg(long, env = "LANDSKETCH_DATA_DIR", default_value = "landsketch-data")]
     pub data_dir: PathBuf,
+    /// Database of the participation store (comments, likes, viewpoints, meetings):
+    /// `postgres://user:password@host/db` for several replicas, `sqlite://path`; default the
+    /// SQLite file `participation.sqlite` in the data directory.
+    #[arg(long, env = "LANDSKETCH_DATABASE_URL", hide_env_values = true)]
+    pub database_url: Option<String>,
     /// Directory of the preprocessing cache (HLPs, baked billboards), so a restart with the
     /// same scene skips preprocessing; default `<data-dir>/cache`.
     #[arg(long, env = "LANDSKETCH_CACHE_DIR")]

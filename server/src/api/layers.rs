@@ -6,6 +6,7 @@ use super::AppState;
 use super::auth::Admin;
 use super::connections::body_error;
 use super::error::{ApiError, ErrorBody};
+use super::events::{Change, LiveEvent};
 use crate::echo::echo;
 use crate::fields::{ColorMapName, ColorMapSpec, HATCH_COLORS, Legend, MappingTarget};
 use crate::store::{LayerMeta, StoreError, UploadRequest};
@@ -236,6 +237,8 @@ pub async fn upload(
     })
     .await?;
     tracing::info!(layer = %meta.id, steps = meta.steps.len(), appended, "layer uploaded");
+    let change = if appended { Change::Changed } else { Change::Added };
+    state.publish(LiveEvent::Layer { change, id: meta.id.clone() });
     let status = if appended { StatusCode::OK } else { StatusCode::CREATED };
     let mut response = (status, Json(&meta)).into_response();
     if let Ok(location) = HeaderValue::from_str(&format!("/api/layers/{}", meta.id)) {
@@ -278,6 +281,7 @@ pub async fn delete(
     let store = state.store().clone();
     let meta = blocking(move || store.delete(&id)).await?;
     tracing::info!(layer = %meta.id, "layer deleted");
+    state.publish(LiveEvent::Layer { change: Change::Removed, id: meta.id });
     Ok(StatusCode::NO_CONTENT)
 }
 

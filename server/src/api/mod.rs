@@ -6,9 +6,11 @@
 pub mod artmaps;
 pub mod auth;
 pub mod cache;
+pub mod comments;
 pub mod config;
 pub mod connections;
 pub mod error;
+pub mod events;
 pub mod layers;
 pub mod metrics;
 pub mod openapi;
@@ -23,6 +25,7 @@ pub use error::ApiError;
 use crate::fields::SceneGeo;
 use crate::render::{Gpu, RenderError};
 use crate::scene::{Scene, SceneError};
+use crate::store::participation::{ParticipationError, ParticipationStore, SqlStore};
 use crate::store::{Store, StoreError, StoreLimits};
 use artmaps::ArtMaps;
 use axum::Router;
@@ -63,6 +66,10 @@ pub enum ServerError {
     /// The layer store in the data directory cannot be opened.
     #[error("cannot open the layer store: {0}")]
     Store(#[from] StoreError),
+    /// The participation store (`--database-url`, or the SQLite file in the data directory)
+    /// cannot be opened or migrated.
+    #[error(transparent)]
+    Participation(#[from] ParticipationError),
     /// `--admin-token-file` is unreadable or empty.
     #[error(transparent)]
     TokenFile(#[from] config::TokenFileError),
@@ -103,6 +110,8 @@ struct Inner {
     config: ServerConfig,
     metrics: Metrics,
     store: Arc<Store>,
+    participation: Arc<dyn ParticipationStore>,
+    events: events::Events,
     started: Instant,
     ready: OnceLock<Ready>,
     shutdown: watch::Sender<bool>,
@@ -115,13 +124,15 @@ struct Inner {
 pub struct AppState(Arc<Inner>);
 
 impl AppState {
-    fn new(config: ServerConfig, store: Arc<Store>) -> AppState {
+    fn new(config: ServerConfig, store: Arc<Store>, participation: Arc<dyn ParticipationStore>) -> AppState {
         let decodes = Arc::new(tokio::sync::Semaphore::new(config.upload_decodes));
         AppState(Arc::new(Inner {
             decodes,
             config,
             metrics: Metrics::new(),
             store,
+            participation,
+            events: events::Events::default(),
             started: Instant::now(),
             ready: OnceLock::new(),
             shutdown: watch::Sender::new(false),
@@ -141,6 +152,21 @@ impl AppState {
     /// The data-layer store (opened from `--data-dir`).
     pub fn store(&self) -> &Arc<Store> {
         &self.0.store
+    }
+
+    /// The participation store: comments, likes, reports, viewpoints, meetings.
+    pub fn participation(&self) -> &Arc<dyn ParticipationStore> {
+        &self.0.participation
+    }
+
+    /// The live-event channel every WebSocket session listens to.
+    pub fn events(&self) -> &events::Events {
+        &self.0.events
+    }
+
+    /// Tells every WebSocket session about a change (see [`events`]).
+    pub fn publish(&self, event: events::LiveEvent) {
+        self.0.events.send(event);
     }
 
     /// The loaded scene and renderer; `None` while loading.
@@ -277,7 +303,7 @@ pub struct Server {
 
 impl Server {
     /// Reads the admin token file (if any), creates the data directory, opens the layer store
-    /// in it and binds the listen address (port 0 picks a free port).
+    /// and the participation store in it (or at `--database-url`) and binds the listen address (port 0 picks a free port).
     pub async fn bind(mut config: ServerConfig) -> Result<Server, ServerError> {
         config.resolve_admin_token()?;
         std::fs::create_dir_all(&config.data_dir)
@@ -288,12 +314,16 @@ impl Server {
             .await
             .map_err(std::io::Error::other)??;
         info!(dir = %config.data_dir.display(), layers = store.list().len(), "layer store opened");
+        let participation = match &config.database_url {
+            Some(url) => SqlStore::open(url).await?,
+            None => SqlStore::open_in(&config.data_dir).await?,
+        };
         if !config.web_dir.join("index.html").is_file() {
             tracing::warn!(dir = %config.web_dir.display(), "no index.html in the web directory: the browser UI is off");
         }
         let listener =
             TcpListener::bind(config.addr).await.map_err(|source| ServerError::Bind { addr: config.addr, source })?;
-        Ok(Server { listener, state: AppState::new(config, Arc::new(store)) })
+        Ok(Server { listener, state: AppState::new(config, Arc::new(store), Arc::new(participation)) })
     }
 
     /// The address the server listens on.

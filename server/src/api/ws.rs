@@ -9,6 +9,7 @@
 
 use super::connections::stopped;
 use super::error::{ApiError, ErrorDetail};
+use super::events::{Changed, LiveEvent};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
 use super::routes::{CameraInfo, pool_error};
@@ -196,6 +197,9 @@ pub enum ServerMessage {
         /// Silhouette art maps (`silhouette_map` 0…sams − 1).
         sams: usize,
     },
+    /// Comments, layers, viewpoints or art maps changed (`what`); see the guide's
+    /// "Participation" chapter.
+    Changed(Changed),
     /// Answer to `ping`.
     Pong {
         /// The ping's `id`.
@@ -361,6 +365,7 @@ enum Event {
     Message(Option<Result<Message, axum::Error>>),
     Frame(Result<Frame, PoolError>),
     ArtMaps,
+    Live(Result<LiveEvent, u64>),
     Wake,
     Idle,
     Shutdown,
@@ -421,6 +426,7 @@ impl<'a> Session<'a> {
         let mut shutdown = self.state.shutdown_receiver();
         let mut socket = Link { socket, send_timeout: config.ws_send_timeout(), shutdown: shutdown.clone() };
         let mut art_maps = self.ready.art.subscribe();
+        let mut live = self.state.events().subscribe();
         let hello = ServerMessage::Hello {
             session: self.id,
             protocol: PROTOCOL_VERSION,
@@ -443,6 +449,7 @@ impl<'a> Session<'a> {
                 message = socket.socket.recv() => Event::Message(message),
                 frame = frame_done(&mut self.in_flight) => Event::Frame(frame),
                 Ok(()) = art_maps.changed() => Event::ArtMaps,
+                event = next_live(&mut live) => Event::Live(event),
                 () = sleep_until(wake_at) => Event::Wake,
                 () = tokio::time::sleep_until(idle_at) => Event::Idle,
                 _ = shutdown.wait_for(|stopping| *stopping) => Event::Shutdown,
@@ -482,6 +489,16 @@ impl<'a> Session<'a> {
                     self.delivered = None;
                     let (tams, sams) = self.ready.art.counts();
                     Some(ServerMessage::ArtMaps { tams, sams })
+                }
+                Event::Live(Ok(event)) => event.public().map(ServerMessage::Changed),
+                Event::Live(Err(missed)) => {
+                    tracing::debug!(session = self.id, missed, "session fell behind the live events");
+                    for reload in super::events::reload_all() {
+                        if let Err(failed) = socket.send_json(&ServerMessage::Changed(reload)).await {
+                            return self.ended(failed);
+                        }
+                    }
+                    None
                 }
                 Event::Wake => None,
                 Event::Idle => {
@@ -754,6 +771,17 @@ async fn frame_done(in_flight: &mut Option<InFlight>) -> Result<Frame, PoolError
     match in_flight {
         Some(f) => (&mut f.receiver).await.unwrap_or(Err(PoolError::Cancelled)),
         None => std::future::pending().await,
+    }
+}
+
+/// The next live event; `Err(n)` when the session fell `n` events behind. The sender lives in
+/// the app state, so the channel never closes while a session runs.
+async fn next_live(live: &mut tokio::sync::broadcast::Receiver<LiveEvent>) -> Result<LiveEvent, u64> {
+    use tokio::sync::broadcast::error::RecvError;
+    match live.recv().await {
+        Ok(event) => Ok(event),
+        Err(RecvError::Lagged(missed)) => Err(missed),
+        Err(RecvError::Closed) => std::future::pending().await,
     }
 }
 

@@ -32,6 +32,7 @@
 //! Uploaded art maps are kept in `artmaps/` (see [`Store::save_art_map`]).
 
 mod artmaps;
+pub mod participation;
 pub mod request;
 
 pub use artmaps::StoredArtMap;
