@@ -21,8 +21,6 @@ const DEFAULT_SCALE = '1';
 const TOKEN_KEY = 'landsketch.adminToken';
 /** Set once the gesture hints were dismissed. */
 const HINT_KEY = 'landsketch.hintSeen';
-/** How often other pages' changes to the layers are looked for, until live events exist. */
-const LAYER_POLL_MS = 1000;
 /** The named looks a citizen chooses from: a preset each (`''` the default pen sketch). */
 const LOOKS = [['looks.sketch', ''], ['looks.colour', 'half_npr'], ['looks.photo', 'photorealism'], ['looks.book', 'childrens_book']];
 /** Size of a look's picture. */
@@ -487,15 +485,9 @@ function setupArt() {
   app.art.refresh();
 }
 
-/** What identifies the stored layers' state: ids, steps and ranges. */
-function layersKey(layers) {
-  return JSON.stringify(layers.map((l) => [l.id, l.steps.length, l.min, l.max]));
-}
-
 async function refreshLayers(data) {
   try {
     const { layers } = await getJSON('/api/layers');
-    app.layersKey = layersKey(layers);
     data.show(layers, app.view.mappings, app.view.time);
   } catch (error) {
     say(t('msg.layers', { reason: error.message }));
@@ -503,28 +495,15 @@ async function refreshLayers(data) {
 }
 
 /**
- * Other pages' uploads and deletions: the list is looked at every second while the page is
- * visible and shown again when it changed.
+ * Other pages' uploads and deletions, told by the server's `changed` messages
+ * (`{"what": "layers", "change": "added" | "changed" | "removed" | "reload", "id"}`): the list
+ * is fetched again and a new layer is announced.
  */
-function watchLayers(data) {
-  const poll = async () => {
-    if (document.visibilityState === 'visible') {
-      try {
-        const { layers } = await getJSON('/api/layers');
-        if (layersKey(layers) !== app.layersKey) {
-          const known = new Set(data.layers.map((l) => l.id));
-          const added = layers.find((l) => !known.has(l.id));
-          app.layersKey = layersKey(layers);
-          data.show(layers, app.view.mappings, app.view.time);
-          if (added) say(t('msg.newLayer', { name: added.name }), 'info');
-        }
-      } catch {
-        // The next poll tries again; the connection status shows an outage.
-      }
-    }
-    setTimeout(poll, LAYER_POLL_MS);
-  };
-  setTimeout(poll, LAYER_POLL_MS);
+async function layersChanged(data, message) {
+  const known = new Set(data.layers.map((l) => l.id));
+  await refreshLayers(data);
+  const added = message.change === 'added' && data.layers.find((l) => l.id === message.id && !known.has(l.id));
+  if (added) say(t('msg.newLayer', { name: added.name }), 'info');
 }
 
 /** Shows `mappings` in the view; without any, the time goes too. */
@@ -572,7 +551,6 @@ function setupData(openapi) {
   app.data = data;
   setupUpload(() => refreshLayers(data));
   refreshLayers(data);
-  watchLayers(data);
 }
 
 /** ARIA tabs: click or arrow keys switch the panes (the planner's only in planner mode). */
@@ -801,6 +779,9 @@ function setupConnection() {
   connection.addEventListener('frame', (e) => drawFrame(e.detail));
   connection.addEventListener('stats', (e) => showStats(e.detail));
   connection.addEventListener('art_maps', () => app.art?.refresh());
+  connection.addEventListener('changed', (e) => {
+    if (e.detail.what === 'layers' && app.data) layersChanged(app.data, e.detail);
+  });
   connection.addEventListener('status', (e) => {
     if (e.detail.state !== 'open') $('rendering').hidden = true;
   });

@@ -53,7 +53,8 @@ export function statsText(stats) {
  * A session that reconnects by itself. Events: `status` (detail: `{state, delayMs?, attempt?}`
  * with state `connecting`, `open`, `waiting`), `hello`, `frame` (detail: `{meta, header,
  * bitmap, latencyMs}`), `data` (the answer to a `data` control: time and warnings), `art_maps` (the server's art
- * maps changed: their counts; a new frame follows), `error`
+ * maps changed: their counts; a new frame follows), `changed` (comments, layers, viewpoints or
+ * art maps changed on the server: `{what, change, id?}`), `error`
  * (a server `error` message), `stats`.
  */
 export class Connection extends EventTarget {
@@ -159,6 +160,7 @@ export class Connection extends EventTarget {
         break;
       case 'data':
       case 'art_maps':
+      case 'changed':
         this.dispatchEvent(new CustomEvent(message.type, { detail: message }));
         break;
       case 'pong':
