@@ -5,18 +5,16 @@ mod common;
 
 use clap::Parser;
 use common::server::{TestServer, client, get, json_of, loaded, raw_exchange};
+use common::ws::{Incoming, connect, next_frame, receive, send};
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::view::{ImageFormat, Limits, Source, ViewParams};
-use landsketch::api::ws::{FrameHeader, HEADER_LEN};
 use landsketch::api::{Server, ServerConfig};
 use landsketch::render::Style;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
-use tokio::net::TcpStream;
 use tokio_tungstenite::tungstenite::Message;
-use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 /// The data directory of the servers in this file.
 fn data_dir() -> std::path::PathBuf {
@@ -669,58 +667,6 @@ fn serve_prints_the_address_to_open() {
 
 // ---------------------------------------------------------------------------------------------
 // WebSocket
-
-type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
-
-enum Incoming {
-    Json(Value),
-    Frame(FrameHeader, Vec<u8>),
-    Closed(Option<String>),
-}
-
-async fn connect(server: &TestServer, query: &str) -> Socket {
-    let (socket, _) = tokio_tungstenite::connect_async(server.ws_url(query)).await.expect("WebSocket connect");
-    socket
-}
-
-async fn receive(socket: &mut Socket) -> Incoming {
-    loop {
-        let message = tokio::time::timeout(Duration::from_secs(30), socket.next()).await.expect("a message in time");
-        match message {
-            Some(Ok(Message::Text(text))) => {
-                return Incoming::Json(serde_json::from_str(text.as_str()).expect("JSON message"));
-            }
-            Some(Ok(Message::Binary(bytes))) => {
-                let header = FrameHeader::decode(&bytes).expect("frame header");
-                return Incoming::Frame(header, bytes[HEADER_LEN..].to_vec());
-            }
-            Some(Ok(Message::Close(frame))) => return Incoming::Closed(frame.map(|f| f.reason.to_string())),
-            Some(Ok(_)) => {}
-            Some(Err(_)) | None => return Incoming::Closed(None),
-        }
-    }
-}
-
-/// The next frame: its `frame` message, header and image bytes (other JSON messages are
-/// returned in the first vector).
-async fn next_frame(socket: &mut Socket) -> (Vec<Value>, Value, FrameHeader, Vec<u8>) {
-    let mut others = Vec::new();
-    loop {
-        match receive(socket).await {
-            Incoming::Json(v) if v["type"] == "frame" => match receive(socket).await {
-                Incoming::Frame(header, bytes) => return (others, v, header, bytes),
-                _ => panic!("a frame message is followed by a binary frame"),
-            },
-            Incoming::Json(v) => others.push(v),
-            Incoming::Frame(..) => panic!("binary frame without a frame message"),
-            Incoming::Closed(reason) => panic!("closed: {reason:?}"),
-        }
-    }
-}
-
-async fn send(socket: &mut Socket, message: Value) {
-    socket.send(Message::text(message.to_string())).await.expect("send");
-}
 
 #[tokio::test]
 async fn the_first_frame_arrives_with_a_correct_header() {

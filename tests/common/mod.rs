@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod server;
+pub mod ws;
 
 use image::RgbaImage;
 use landsketch::gis::{Crs, GeoTransform, Raster};

@@ -24,6 +24,12 @@ fn constant_time_eq(given: &[u8], token: &[u8]) -> bool {
     std::hint::black_box(diff) == 0
 }
 
+/// Whether a secret a client gave (a meeting password, a token) is `secret`, compared in
+/// constant time.
+pub fn secret_matches(given: &str, secret: &str) -> bool {
+    constant_time_eq(given.as_bytes(), secret.as_bytes())
+}
+
 /// Whether `host` (a `Host` header value: a name or address with an optional port) names this
 /// machine's loopback interface: `localhost`, `127.0.0.1` or `[::1]`.
 fn is_loopback_host(host: &str) -> bool {

@@ -43,6 +43,15 @@ pub struct ServerConfig {
     /// an empty or unreadable file stops the server.
     #[arg(long, env = "LANDSKETCH_ADMIN_TOKEN_FILE", conflicts_with = "admin_token")]
     pub admin_token_file: Option<PathBuf>,
+    /// Password that lets a client open a meeting (presenter mode) without the admin token,
+    /// given as `password` in `POST /api/meetings` or the `open_meeting` message. Prefer
+    /// `--meeting-password-file` or the environment over the flag.
+    #[arg(long, env = "LANDSKETCH_MEETING_PASSWORD", hide_env_values = true)]
+    pub meeting_password: Option<String>,
+    /// File holding the meeting password (surrounding white space is ignored); read at
+    /// start-up, an empty or unreadable file stops the server.
+    #[arg(long, env = "LANDSKETCH_MEETING_PASSWORD_FILE", conflicts_with = "meeting_password")]
+    pub meeting_password_file: Option<PathBuf>,
     /// Origins allowed to call the API from a browser (CORS), comma-separated, or `*`;
     /// CORS is off when empty.
     #[arg(long, env = "LANDSKETCH_CORS_ORIGINS", value_delimiter = ',')]
@@ -103,18 +112,18 @@ pub struct ServerConfig {
     pub interactive_quality: u8,
 }
 
-/// Why the admin token file cannot be used.
+/// Why a secret file (`--admin-token-file`, `--meeting-password-file`) cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum TokenFileError {
     /// The file cannot be read (missing, unreadable, not UTF-8).
-    #[error("cannot read the admin token file {path}: {source}")]
+    #[error("cannot read the secret file {path}: {source}")]
     Read { path: PathBuf, source: std::io::Error },
     /// The file holds nothing but white space.
-    #[error("the admin token file {path} is empty")]
+    #[error("the secret file {path} is empty")]
     Empty { path: PathBuf },
 }
 
-/// Reads the admin token from `path`: the file's text without surrounding white space (a
+/// Reads a secret (the admin token, the meeting password) from `path`: the file's text without surrounding white space (a
 /// trailing newline is usual); an unreadable file or one without a token is an error naming it.
 pub fn read_token_file(path: &Path) -> Result<String, TokenFileError> {
     let text =
@@ -139,10 +148,14 @@ where
 }
 
 impl ServerConfig {
-    /// Reads `--admin-token-file`, when given, into `admin_token`.
+    /// Reads `--admin-token-file` and `--meeting-password-file`, when given, into
+    /// `admin_token` and `meeting_password`.
     pub fn resolve_admin_token(&mut self) -> Result<(), TokenFileError> {
         if let Some(path) = &self.admin_token_file {
             self.admin_token = Some(read_token_file(path)?);
+        }
+        if let Some(path) = &self.meeting_password_file {
+            self.meeting_password = Some(read_token_file(path)?);
         }
         Ok(())
     }

@@ -33,6 +33,13 @@ pub struct KindLabels {
     pub kind: &'static str,
 }
 
+/// Label of meeting metrics: the join code.
+#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct MeetingLabels {
+    /// The meeting's join code.
+    pub meeting: String,
+}
+
 type HistogramFamily<L> = Family<L, Histogram, fn() -> Histogram>;
 
 fn seconds_histogram() -> Histogram {
@@ -65,6 +72,14 @@ pub struct Metrics {
     pub frames_sent: Family<KindLabels, Counter>,
     /// WebSocket client messages answered with an error.
     pub ws_bad_messages: Counter,
+    /// Open meetings.
+    pub meetings: Gauge,
+    /// Followers of each open meeting.
+    pub meeting_followers: Family<MeetingLabels, Gauge>,
+    /// Frames rendered for each open meeting (once each, shared by all followers).
+    pub meeting_renders: Family<MeetingLabels, Counter>,
+    /// Presenter frames sent to followers.
+    pub meeting_frames_sent: Counter,
     /// Render-cache lookups that found the image.
     pub cache_hits: Counter,
     /// Render-cache lookups that did not.
@@ -98,6 +113,10 @@ impl Metrics {
             sessions_opened: Counter::default(),
             frames_sent: Family::default(),
             ws_bad_messages: Counter::default(),
+            meetings: Gauge::default(),
+            meeting_followers: Family::default(),
+            meeting_renders: Family::default(),
+            meeting_frames_sent: Counter::default(),
             cache_hits: Counter::default(),
             cache_misses: Counter::default(),
             cache_bytes: Gauge::default(),
@@ -119,6 +138,10 @@ impl Metrics {
         r.register("ws_sessions_opened", "WebSocket sessions opened", metrics.sessions_opened.clone());
         r.register("ws_frames_sent", "Frames sent over WebSockets by kind", metrics.frames_sent.clone());
         r.register("ws_bad_messages", "WebSocket messages answered with an error", metrics.ws_bad_messages.clone());
+        r.register("meetings", "Open meetings", metrics.meetings.clone());
+        r.register("meeting_followers", "Followers of each open meeting", metrics.meeting_followers.clone());
+        r.register("meeting_renders", "Frames rendered for each open meeting", metrics.meeting_renders.clone());
+        r.register("meeting_frames_sent", "Presenter frames sent to followers", metrics.meeting_frames_sent.clone());
         r.register("cache_hits", "Render-cache hits", metrics.cache_hits.clone());
         r.register("cache_misses", "Render-cache misses", metrics.cache_misses.clone());
         r.register("cache_bytes", "Bytes of images in the render cache", metrics.cache_bytes.clone());

@@ -12,6 +12,7 @@ pub mod connections;
 pub mod error;
 pub mod events;
 pub mod layers;
+pub mod meetings;
 pub mod metrics;
 pub mod openapi;
 pub mod pool;
@@ -70,7 +71,7 @@ pub enum ServerError {
     /// cannot be opened or migrated.
     #[error(transparent)]
     Participation(#[from] ParticipationError),
-    /// `--admin-token-file` is unreadable or empty.
+    /// `--admin-token-file` or `--meeting-password-file` is unreadable or empty.
     #[error(transparent)]
     TokenFile(#[from] config::TokenFileError),
     /// A `--cors-origins` entry is not a valid origin.
@@ -117,6 +118,8 @@ struct Inner {
     shutdown: watch::Sender<bool>,
     /// Permits for decoding uploads (`--upload-decodes`).
     decodes: Arc<tokio::sync::Semaphore>,
+    /// Open meetings (presenter mode).
+    meetings: meetings::Meetings,
 }
 
 /// State shared by every handler; cheap to clone.
@@ -126,10 +129,12 @@ pub struct AppState(Arc<Inner>);
 impl AppState {
     fn new(config: ServerConfig, store: Arc<Store>, participation: Arc<dyn ParticipationStore>) -> AppState {
         let decodes = Arc::new(tokio::sync::Semaphore::new(config.upload_decodes));
+        let metrics = Metrics::new();
         AppState(Arc::new(Inner {
             decodes,
             config,
-            metrics: Metrics::new(),
+            meetings: meetings::Meetings::new(metrics.clone()),
+            metrics,
             store,
             participation,
             events: events::Events::default(),
@@ -152,6 +157,11 @@ impl AppState {
     /// The data-layer store (opened from `--data-dir`).
     pub fn store(&self) -> &Arc<Store> {
         &self.0.store
+    }
+
+    /// The open meetings.
+    pub fn meetings(&self) -> &meetings::Meetings {
+        &self.0.meetings
     }
 
     /// The participation store: comments, likes, reports, viewpoints, meetings.
@@ -236,6 +246,9 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
             limited(get(artmaps::png).put(artmaps::put).delete(artmaps::delete), artmaps::MAX_ART_MAP_BYTES),
         )
         .route("/api/ws", get(ws::upgrade))
+        .route("/api/meetings", limited(post(meetings::open), config.body_limit))
+        .route("/api/meetings/{code}", get(meetings::get).delete(meetings::delete))
+        .route("/api/meetings/{code}/qr.svg", get(meetings::qr))
         .route("/api/openapi.json", get(openapi::openapi_json))
         .route("/metrics", get(metrics::metrics_handler))
         // The browser UI at `/`; paths that are neither routes nor files get the JSON 404.

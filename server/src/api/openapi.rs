@@ -1,6 +1,6 @@
 //! The OpenAPI 3 document of the server (`GET /api/openapi.json`).
 
-use super::{artmaps, auth, error, layers, metrics, routes, view, ws};
+use super::{artmaps, auth, error, layers, meetings, metrics, routes, view, ws};
 use axum::Json;
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
 use utoipa::{Modify, OpenApi};
@@ -10,7 +10,7 @@ use utoipa::{Modify, OpenApi};
 #[openapi(
     info(
         title = "landsketch",
-        description = "Pen-and-ink renderings of GIS landscapes over HTTP and WebSocket. Rendering, the WebSocket and reading layers are public; write endpoints (layer upload and delete, art-map upload and delete, cache clearing) need `Authorization: Bearer <token>` when the server has an admin token, else a loopback client."
+        description = "Pen-and-ink renderings of GIS landscapes over HTTP and WebSocket. Rendering, the WebSocket and reading layers are public; write endpoints (layer upload and delete, art-map upload and delete, cache clearing, ending a meeting) need `Authorization: Bearer <token>` when the server has an admin token, else a loopback client."
     ),
     paths(
         routes::health,
@@ -31,16 +31,28 @@ use utoipa::{Modify, OpenApi};
         artmaps::put,
         artmaps::delete,
         ws::upgrade,
+        meetings::open,
+        meetings::get,
+        meetings::qr,
+        meetings::delete,
         metrics::metrics_handler,
         openapi_json,
     ),
-    components(schemas(ws::ClientMessage, ws::ServerMessage, error::ErrorBody, view::ViewParams)),
+    components(schemas(
+        ws::ClientMessage,
+        ws::ServerMessage,
+        error::ErrorBody,
+        view::ViewParams,
+        meetings::MeetingInfo,
+        meetings::OpenMeeting
+    )),
     modifiers(&BearerToken),
     tags(
         (name = "render", description = "Rendered views: REST and WebSocket"),
         (name = "scene", description = "The scene"),
         (name = "layers", description = "Environment data layers: upload, list, legends, delete"),
         (name = "art maps", description = "Tonal and silhouette art maps: list, download, replace or add, restore"),
+        (name = "meetings", description = "Presenter mode: a session presents, followers join with a code and see its frames"),
         (name = "operations", description = "Health, metrics, cache, this document"),
     )
 )]

@@ -280,7 +280,7 @@ pub async fn resolve_styles(
 
 /// Parses a JSON body: too large a body is a 413, malformed JSON a 400, wrong types or unknown
 /// fields a 422 naming the field.
-fn parse_body<T: DeserializeOwned>(body: Result<Bytes, BytesRejection>) -> Result<T, ApiError> {
+pub(super) fn parse_body<T: DeserializeOwned>(body: Result<Bytes, BytesRejection>) -> Result<T, ApiError> {
     let body = body.map_err(|e| match e.status() {
         StatusCode::PAYLOAD_TOO_LARGE => {
             ApiError::too_large("body", "the request body is larger than this server allows")

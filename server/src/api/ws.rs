@@ -7,9 +7,17 @@
 //! (`--interactive-scale`, `--interactive-quality`, at most `--max-fps`); after
 //! `--still-delay-ms` of rest the session gets a full-size still in its own format.
 
+mod meeting;
+mod tour;
+
+pub use meeting::MeetingRole;
+pub use tour::{TourAction, TourControl, TourEvent, TourViewpoint};
+
+use super::auth::Admin;
 use super::connections::stopped;
 use super::error::{ApiError, ErrorDetail};
 use super::events::{Changed, LiveEvent};
+use super::meetings::{Mailbox, Presenter};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
 use super::routes::{CameraInfo, pool_error};
@@ -25,7 +33,7 @@ use crate::render::view_style::ViewStyle;
 use crate::scene::camera::Camera;
 use crate::store::request::DataRequest;
 use axum::body::Bytes;
-use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade, close_code};
+use axum::extract::ws::{CloseFrame, Message, Utf8Bytes, WebSocket, WebSocketUpgrade, close_code};
 use axum::extract::{RawQuery, State};
 use axum::response::Response;
 use serde::{Deserialize, Serialize};
@@ -119,6 +127,39 @@ pub enum ClientMessage {
         #[serde(default)]
         time: Option<String>,
     },
+    /// Opens a meeting presented by this session (presenter mode): allowed when the client
+    /// connected as admin (the admin guard), or with the meeting password or admin token.
+    /// Answered by a `meeting` message with the join code.
+    OpenMeeting {
+        /// The meeting password (`--meeting-password`).
+        #[serde(default)]
+        password: Option<String>,
+        /// The admin token (browsers cannot send it as header on a WebSocket).
+        #[serde(default)]
+        token: Option<String>,
+        /// A caption followers see (plain text, at most 500 characters).
+        #[serde(default)]
+        caption: Option<String>,
+    },
+    /// Ends the meeting this session presents; followers get `meeting_ended`.
+    CloseMeeting,
+    /// The presenter sets the caption its followers see (none: `text` left out).
+    Caption {
+        /// Plain text, at most 500 characters.
+        #[serde(default)]
+        text: Option<String>,
+    },
+    /// Follows the meeting with join code `code`: the session shows the presenter's frames.
+    Join {
+        /// The join code (case and a dash do not matter).
+        code: String,
+    },
+    /// A follower goes on on its own, from the presenter's camera and style.
+    Detach,
+    /// Follows again the meeting the session detached from.
+    Rejoin,
+    /// Plays, steps through or stops a tour of viewpoints.
+    Tour(TourControl),
     /// Asks for a `pong` with the same `id`.
     Ping {
         /// Any JSON value, echoed.
@@ -196,6 +237,44 @@ pub enum ServerMessage {
         tams: usize,
         /// Silhouette art maps (`silhouette_map` 0…sams − 1).
         sams: usize,
+    },
+    /// The session's meeting: sent on opening, joining, detaching, and when the caption or
+    /// the number of followers changes.
+    Meeting {
+        /// The join code.
+        code: String,
+        /// `presenter`, `follower` or `detached`.
+        role: MeetingRole,
+        /// The presenter's caption.
+        caption: Option<String>,
+        /// Sessions following.
+        followers: usize,
+        /// The page followers open: `/?meeting=CODE`.
+        join_url: String,
+        /// The join link as QR code (SVG).
+        qr_url: String,
+    },
+    /// The meeting ended (closed by its presenter, the presenter left, or an administrator);
+    /// a follower goes on on its own from the presenter's last view.
+    MeetingEnded {
+        /// The join code.
+        code: String,
+        /// Why, in words.
+        reason: String,
+    },
+    /// A tour's progress: the camera flies to, or arrived at, viewpoint `index`, or the tour
+    /// finished or stopped.
+    Tour {
+        /// `flying`, `arrived`, `finished` or `stopped`.
+        event: TourEvent,
+        /// The viewpoint (0-based).
+        index: usize,
+        /// Viewpoints in the tour.
+        count: usize,
+        /// The viewpoint's name.
+        name: Option<String>,
+        /// The viewpoint's caption.
+        caption: Option<String>,
     },
     /// Comments, layers, viewpoints or art maps changed (`what`); see the guide's
     /// "Participation" chapter.
@@ -279,22 +358,27 @@ impl FrameHeader {
 }
 
 /// Opens a WebSocket session. The query takes the parameters of `GET /api/render` for the
-/// initial view (e.g. `?width=800&height=600&format=jpeg`).
+/// initial view (e.g. `?width=800&height=600&format=jpeg`), and `meeting=CODE` to follow a
+/// meeting from the start.
 #[utoipa::path(get, path = "/api/ws", tag = "render", params(RenderQuery),
     responses(
         (status = 101, description = "WebSocket session: JSON `ClientMessage`s in, JSON `ServerMessage`s and binary frames out (README, \"WebSocket\")"),
         (status = 400, description = "Not a WebSocket upgrade or malformed parameter", body = super::error::ErrorBody),
+        (status = 404, description = "No open meeting has the `meeting` code", body = super::error::ErrorBody),
         (status = 413, description = "Initial image too large", body = super::error::ErrorBody),
         (status = 422, description = "Initial view out of range", body = super::error::ErrorBody),
         (status = 503, description = "Too many sessions, or the scene is loading", body = super::error::ErrorBody)))]
 pub async fn upgrade(
     State(state): State<AppState>,
+    admin: Result<Admin, ApiError>,
     RawQuery(query): RawQuery,
     ws: Result<WebSocketUpgrade, axum::extract::ws::rejection::WebSocketUpgradeRejection>,
 ) -> Result<Response, ApiError> {
     let ws = ws.map_err(|e| ApiError::BadRequest { parameter: None, message: e.body_text() })?;
     let ready = state.ready().ok_or(ApiError::NotReady)?;
-    let params = ViewParams::from_query(query.as_deref().unwrap_or_default())?;
+    let (code, query) = super::meetings::split_query(query.as_deref().unwrap_or_default());
+    let join = code.map(|code| state.meetings().find(&code)).transpose()?;
+    let params = ViewParams::from_query(&query)?;
     let initial = params.normalize(&ready.scene, state.store(), state.limits(), Source::Query)?;
     let walking = !matches!(params.camera.position.as_deref(), Some([_, _, _]));
     let config = state.config();
@@ -305,7 +389,10 @@ pub async fn upgrade(
     let ws = ws.max_message_size(config.ws_max_message).max_frame_size(config.ws_max_message);
     Ok(ws.on_upgrade(move |socket| async move {
         let Some(ready) = state.ready() else { return };
-        let session = Session::new(&state, ready, initial, walking);
+        let mut session = Session::new(&state, ready, initial, walking, admin.is_ok());
+        if let Some(meeting) = join {
+            session.follow(&meeting);
+        }
         tracing::info!(session = session.id, "WebSocket session opened");
         let id = session.id;
         session.run(socket).await;
@@ -364,6 +451,8 @@ struct InFlight {
 enum Event {
     Message(Option<Result<Message, axum::Error>>),
     Frame(Result<Frame, PoolError>),
+    Meeting(meeting::MeetingEvent),
+    Present(Presenter),
     ArtMaps,
     Live(Result<LiveEvent, u64>),
     Wake,
@@ -386,16 +475,28 @@ struct Session<'a> {
     delivered: Option<ViewRequest>,
     in_flight: Option<InFlight>,
     wake_at: Option<Instant>,
+    /// Whether the admin guard admitted the client when it connected (it may open meetings).
+    admitted: bool,
+    /// The session's part in a meeting.
+    meeting: Option<meeting::Role>,
+    /// Where a meeting opened for this session over REST arrives.
+    mailbox: Mailbox,
+    /// The tour being played.
+    tour: Option<tour::TourPlay>,
 }
 
 impl<'a> Session<'a> {
-    fn new(state: &'a AppState, ready: &'a Ready, initial: ViewRequest, walking: bool) -> Session<'a> {
+    fn new(state: &'a AppState, ready: &'a Ready, initial: ViewRequest, walking: bool, admitted: bool) -> Session<'a> {
         let lane = ready.pool.session_lane();
         let camera = initial.camera;
         let ground = |c: &Camera| ready.scene.terrain.height_at(f64::from(c.position[0]), f64::from(c.position[1]));
         let eye_height = if walking { ground(&camera).map(|g| camera.position[2] - g as f32) } else { None };
         Session {
             id: lane.id(),
+            mailbox: state.meetings().register(lane.id()),
+            admitted,
+            meeting: None,
+            tour: None,
             state,
             ready,
             lane,
@@ -441,6 +542,11 @@ impl<'a> Session<'a> {
         if let Err(failed) = socket.send_json(&hello).await {
             return self.ended(failed);
         }
+        if let Some(message) = self.meeting_message()
+            && let Err(failed) = socket.send_json(&message).await
+        {
+            return self.ended(failed);
+        }
         self.schedule(Instant::now());
         loop {
             let idle_at = self.last_message + config.idle_timeout();
@@ -448,6 +554,8 @@ impl<'a> Session<'a> {
             let event = tokio::select! {
                 message = socket.socket.recv() => Event::Message(message),
                 frame = frame_done(&mut self.in_flight) => Event::Frame(frame),
+                event = meeting::next_event(&mut self.meeting) => Event::Meeting(event),
+                Some(presenter) = self.mailbox.recv() => Event::Present(presenter),
                 Ok(()) = art_maps.changed() => Event::ArtMaps,
                 event = next_live(&mut live) => Event::Live(event),
                 () = sleep_until(wake_at) => Event::Wake,
@@ -484,6 +592,11 @@ impl<'a> Session<'a> {
                     }
                     None
                 }
+                Event::Meeting(event) => match self.on_meeting_event(&mut socket, event).await {
+                    Ok(message) => message,
+                    Err(failed) => return self.ended(failed),
+                },
+                Event::Present(presenter) => Some(self.start_presenting(presenter)),
                 Event::ArtMaps => {
                     // The view is shown again with the new maps.
                     self.delivered = None;
@@ -510,12 +623,16 @@ impl<'a> Session<'a> {
                     return;
                 }
             };
-            if let Some(message) = outgoing
-                && let Err(failed) = socket.send_json(&message).await
-            {
-                return self.ended(failed);
+            let tour = self.advance_tour(now, config.frame_interval());
+            for message in outgoing.into_iter().chain(tour) {
+                if let Err(failed) = socket.send_json(&message).await {
+                    return self.ended(failed);
+                }
             }
             self.schedule(now);
+            if let Some(wake) = self.tour.as_ref().and_then(|t| t.wake) {
+                self.wake_at = Some(self.wake_at.map_or(wake, |w| w.min(wake)));
+            }
         }
     }
 
@@ -550,8 +667,34 @@ impl<'a> Session<'a> {
                 | ClientMessage::Data { .. }
         );
         let mut answer = None;
+        if matches!(
+            message,
+            ClientMessage::Camera(_)
+                | ClientMessage::Move(_)
+                | ClientMessage::Style { .. }
+                | ClientMessage::Data { .. }
+                | ClientMessage::Tour(_)
+                | ClientMessage::OpenMeeting { .. }
+        ) && let Err(error) = self.refuse_while_following()
+        {
+            return Some(self.reject(error));
+        }
+        if matches!(message, ClientMessage::Camera(_) | ClientMessage::Move(_)) {
+            // A camera control takes over from a tour.
+            answer = self.stop_tour();
+        }
+        let mut reply = |message: Result<ServerMessage, ApiError>| message.map(|m| answer = Some(m));
         let applied = match message {
             ClientMessage::Ping { id } => return Some(ServerMessage::Pong { id }),
+            ClientMessage::OpenMeeting { password, token, caption } => {
+                reply(self.open_meeting(password, token, caption))
+            }
+            ClientMessage::CloseMeeting => reply(self.close_meeting()),
+            ClientMessage::Caption { text } => reply(self.set_meeting_caption(text)),
+            ClientMessage::Join { code } => reply(self.join(&code)),
+            ClientMessage::Detach => reply(self.detach()),
+            ClientMessage::Rejoin => reply(self.rejoin()),
+            ClientMessage::Tour(control) => reply(self.tour_control(control, now)),
             ClientMessage::Data { mappings, time } => {
                 DataRequest::resolve(&mappings, time.as_deref(), self.state.store()).map_err(ApiError::from).map(
                     |data| {
@@ -689,6 +832,9 @@ impl<'a> Session<'a> {
     /// Queues the view to show if it is not shown or coming already; sets the next wake-up
     /// (the still after rest, or the next paced interactive frame).
     fn schedule(&mut self, now: Instant) {
+        if self.is_following() {
+            return;
+        }
         let config = self.state.config();
         let (view, kind) = self.target(now);
         self.wake_at = self.last_control.map(|t| t + config.still_delay()).filter(|t| *t > now);
@@ -758,8 +904,11 @@ impl<'a> Session<'a> {
         let mut binary = Vec::with_capacity(HEADER_LEN + frame.bytes.len());
         binary.extend_from_slice(&header.encode());
         binary.extend_from_slice(&frame.bytes);
-        socket.send_json(&status).await?;
-        socket.send(Message::Binary(Bytes::from(binary))).await?;
+        let text = Utf8Bytes::from(serde_json::to_string(&status).map_err(|_| SendFailed::Closed)?);
+        let binary = Bytes::from(binary);
+        self.publish(&text, &binary, view);
+        socket.send(Message::Text(text)).await?;
+        socket.send(Message::Binary(binary)).await?;
         self.state.metrics().frames_sent.get_or_create(&done.kind.label()).inc();
         // A frame queued before an art-map change may show the old maps: it is shown again.
         self.delivered = (done.art == self.ready.art.generation()).then_some(done.view);

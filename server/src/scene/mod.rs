@@ -9,6 +9,7 @@ pub mod plan;
 pub mod plant;
 pub mod procedural;
 pub mod terrain;
+pub mod tour;
 pub mod vegetation;
 
 use crate::gis::{self, CrsDefinition, GisError, ReprojectError, SceneTarget, VectorError};
