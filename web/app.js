@@ -97,6 +97,10 @@ function flush() {
   app.flushing = null;
   const connection = app.connection;
   if (!connection.open) return;
+  // A follower that moves, or changes its view, goes on on its own (from the presenter's view).
+  if (app.meeting?.role === 'follower' && [...app.dirty].some((part) => part !== 'size')) {
+    connection.send({ type: 'detach' });
+  }
   for (const part of app.dirty) {
     if (part === 'camera') connection.send(cameraMessage(app.view));
     else if (part === 'style') connection.send(styleMessage(app.view));
@@ -139,6 +143,7 @@ function drawFrame({ meta, header, bitmap }) {
   if (meta?.camera) {
     app.frameCamera = meta.camera;
     canvas.dataset.camera = JSON.stringify(meta.camera);
+    if (app.meeting?.role === 'follower' || app.touring) adoptCamera(meta.camera);
   }
   $('placeholder').hidden = true;
 }
@@ -256,11 +261,15 @@ function planLayer() {
  * its middle from far enough to see all of it.
  */
 function goToPlan() {
+  const camera = planCamera();
+  if (camera) setCamera(camera);
+  else say(t('msg.noPlan'));
+}
+
+/** The camera of "Go to the plan", or null without a planned layer. */
+function planCamera() {
   const plan = planLayer();
-  if (!plan?.extent) {
-    say(t('msg.noPlan'));
-    return;
-  }
+  if (!plan?.extent) return null;
   const { min, max } = plan.extent;
   const centre = [(min[0] + max[0]) / 2, (min[1] + max[1]) / 2];
   let away = [app.base.x - centre[0], app.base.y - centre[1]];
@@ -271,7 +280,114 @@ function goToPlan() {
   const y = centre[1] + away[1] * distance;
   const yaw = ((Math.atan2(centre[0] - x, centre[1] - y) * 180) / Math.PI + 360) % 360;
   const pitch = -(Math.atan2(PLAN_EYE, distance) * 180) / Math.PI;
-  setCamera({ x, y, eyeHeight: PLAN_EYE, yaw, pitch, fov: 60 });
+  const inside = { x, y };
+  keepInside(inside, app.scene.extent);
+  return { ...inside, eyeHeight: PLAN_EYE, yaw, pitch, fov: 60 };
+}
+
+/** Takes the camera of a frame the session did not ask for (a presenter's, a tour's) as the view's. */
+function adoptCamera(camera) {
+  const view = app.view;
+  if (camera.mode === 'plan' || !camera.position) return;
+  [view.x, view.y, view.z] = camera.position;
+  view.plan = null;
+  for (const name of ['yaw', 'pitch', 'fov']) if (camera[name] != null) view[name] = camera[name];
+  showMode();
+  showOrientation();
+  scheduleLink();
+}
+
+/** The tour: the start, an overview from above it and the plan, each with a caption. */
+function tourViewpoints() {
+  const base = app.base;
+  const at = (camera) => {
+    const { type, ...params } = cameraMessage({ ...app.view, z: null, plan: null, roll: 0, ...camera });
+    return params;
+  };
+  const stops = [
+    { camera: at({ x: base.x, y: base.y, eyeHeight: base.eyeHeight, yaw: base.yaw, pitch: base.pitch, fov: base.fov }), key: 'start' },
+    { camera: at({ x: base.x, y: base.y, eyeHeight: FLY_LIFT, yaw: base.yaw, pitch: FLY_PITCH, fov: base.fov }), key: 'overview' },
+  ];
+  const plan = planCamera();
+  if (plan) stops.push({ camera: at(plan), key: 'plan' });
+  return stops.map(({ camera, key }) => ({ camera, name: t(`tour.${key}`), caption: t(`tour.${key}Caption`) }));
+}
+
+function toggleTour() {
+  if (app.touring) {
+    app.connection.send({ type: 'tour', action: 'stop' });
+    return;
+  }
+  app.touring = true;
+  $('tour').setAttribute('aria-pressed', 'true');
+  app.connection.send({ type: 'tour', action: 'start', viewpoints: tourViewpoints(), dwell_s: 3 });
+}
+
+/** A `tour` message: the caption of the viewpoint reached, or the end of the tour. */
+function showTour(message) {
+  const caption = $('tour-caption');
+  if (message.event === 'finished' || message.event === 'stopped') {
+    app.touring = false;
+    $('tour').setAttribute('aria-pressed', 'false');
+    caption.hidden = true;
+    return;
+  }
+  app.touring = true;
+  const step = t('tour.step', { name: message.name ?? '', i: message.index + 1, n: message.count });
+  caption.textContent = message.caption ? `${step}: ${message.caption}` : step;
+  caption.hidden = false;
+}
+
+/** The session's meeting: the presenter's code, QR and followers, or a follower's choices. */
+function showMeeting(message) {
+  app.meeting = message;
+  const { code, role } = message;
+  $('meeting').hidden = false;
+  $('meeting').dataset.code = code;
+  $('meeting').dataset.role = role;
+  $('meeting-title').textContent = t(`meeting.${{ presenter: 'presenting', follower: 'following', detached: 'detached' }[role]}`, { code });
+  const url = new URL(message.join_url, window.location.href).href;
+  $('meeting-status').textContent = role === 'presenter' ? t('meeting.followers', { n: message.followers, url }) : '';
+  $('meeting-caption').textContent = message.caption ?? '';
+  const qr = $('meeting-qr');
+  qr.hidden = role !== 'presenter';
+  if (role === 'presenter' && qr.dataset.code !== code) {
+    qr.src = message.qr_url;
+    qr.alt = t('meeting.qr', { code });
+    qr.dataset.code = code;
+  }
+  $('meeting-detach').hidden = role !== 'follower';
+  $('meeting-rejoin').hidden = role !== 'detached';
+  $('meeting-close').hidden = role !== 'presenter';
+  $('meeting-open').hidden = true;
+}
+
+/** The meeting panel goes; `message` (a `meeting_ended`) says why. */
+function meetingEnded(message = null) {
+  app.meeting = null;
+  $('meeting').hidden = true;
+  $('meeting-open').hidden = false;
+  if (message) say(t('meeting.ended', { reason: message.reason }), 'info');
+}
+
+function setupMeeting() {
+  $('meeting-open').addEventListener('click', () => {
+    app.connection.send({ type: 'open_meeting', token: sessionStorage.getItem(TOKEN_KEY) || null });
+  });
+  $('meeting-close').addEventListener('click', () => {
+    app.connection.send({ type: 'close_meeting' });
+    meetingEnded();
+  });
+  $('meeting-detach').addEventListener('click', () => app.connection.send({ type: 'detach' }));
+  $('meeting-rejoin').addEventListener('click', () => app.connection.send({ type: 'rejoin' }));
+  app.connection.addEventListener('meeting', (e) => showMeeting(e.detail));
+  app.connection.addEventListener('meeting_ended', (e) => meetingEnded(e.detail));
+  app.connection.addEventListener('tour', (e) => showTour(e.detail));
+  // `/?meeting=CODE`: follow that meeting once the session is open (again after a reconnect).
+  const code = new URLSearchParams(window.location.search).get('meeting');
+  if (code) {
+    app.connection.addEventListener('hello', () => app.connection.send({ type: 'join', code }));
+  }
 }
 
 /** The plan layer's own style in the view (hidden, highlighted or as the rest). */
@@ -612,6 +728,8 @@ function setupViewer() {
   $('plan').addEventListener('click', () => setPlan(!app.view.plan));
   $('reset-view').addEventListener('click', resetView);
   $('go-plan').addEventListener('click', goToPlan);
+  $('tour').addEventListener('click', toggleTour);
+  $('tour').hidden = false;
   $('with-plan').addEventListener('click', () => setPlanState(planStyle()?.visible === false, false));
   $('highlight-plan').addEventListener('click', () => setPlanState(true, planStyle()?.preset !== 'photorealism'));
   for (const id of ['go-plan', 'with-plan', 'highlight-plan']) $(id).hidden = !planLayer();
@@ -823,6 +941,7 @@ async function main() {
   setupViewer();
   setupLogin();
   setupConnection();
+  setupMeeting();
   showPlanState();
   updateLink();
   document.body.dataset.ready = 'true';

@@ -54,7 +54,9 @@ export function statsText(stats) {
  * with state `connecting`, `open`, `waiting`), `hello`, `frame` (detail: `{meta, header,
  * bitmap, latencyMs}`), `data` (the answer to a `data` control: time and warnings), `art_maps` (the server's art
  * maps changed: their counts; a new frame follows), `changed` (comments, layers, viewpoints or
- * art maps changed on the server: `{what, change, id?}`), `error`
+ * art maps changed on the server: `{what, change, id?}`), `meeting` (the session's meeting:
+ * code, role, caption, followers, join and QR URLs), `meeting_ended`, `tour` (a tour's
+ * progress), `error`
  * (a server `error` message), `stats`.
  */
 export class Connection extends EventTarget {
@@ -161,6 +163,9 @@ export class Connection extends EventTarget {
       case 'data':
       case 'art_maps':
       case 'changed':
+      case 'meeting':
+      case 'meeting_ended':
+      case 'tour':
         this.dispatchEvent(new CustomEvent(message.type, { detail: message }));
         break;
       case 'pong':

@@ -353,6 +353,21 @@ try {
     await linked(page, 'preset', (v) => v === null);
   });
 
+  await check('a tour flies through the start, an overview and the plan with captions', async () => {
+    const before = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
+    await page.locator('#tour').click();
+    await page.waitForFunction(() => /\(\d of 3\)/.test(document.getElementById('tour-caption').textContent), null, { timeout: WAIT });
+    await page.waitForFunction((yaw) => {
+      const camera = JSON.parse(document.getElementById('frame').dataset.camera);
+      return camera.position[2] > 0 && Math.abs(camera.pitch - yaw.pitch) > 1;
+    }, before, { timeout: WAIT });
+    await page.locator('#tour').click();
+    await page.waitForFunction(() => document.getElementById('tour-caption').hidden, null, { timeout: WAIT });
+    assert.equal(await page.locator('#tour').getAttribute('aria-pressed'), 'false');
+    await settledStill(page);
+    await stillAfter(page, () => page.locator('#reset-view').click());
+  });
+
   await check("orientation: compass, mini map, bird's-eye view with a scale bar", async () => {
     await page.waitForFunction(() => document.getElementById('minimap-image').naturalWidth > 0, null, { timeout: WAIT });
     assert.match(await page.locator('#compass').getAttribute('aria-label'), /looks (north|east|south|west)/);
@@ -388,6 +403,35 @@ try {
     assert.deepEqual(await axeViolations(page), [], 'axe-core: no serious or critical violations in planner mode');
     await shot(page, 'planner');
     camera = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
+  });
+
+  await check('a meeting: the planner presents, a page joined by /?meeting=CODE follows, detaches and rejoins', async () => {
+    await page.locator('#meeting-open').click();
+    await page.waitForFunction(() => document.getElementById('meeting').dataset.role === 'presenter', null, { timeout: WAIT });
+    const code = await page.locator('#meeting').getAttribute('data-code');
+    assert.match(await page.locator('#meeting-title').textContent(), new RegExp(`Meeting ${code}: you present`));
+    await page.waitForFunction(() => document.getElementById('meeting-qr').naturalWidth > 0, null, { timeout: WAIT });
+    const follower = watch(await context.newPage());
+    await follower.goto(`${base}/?meeting=${code}`);
+    await follower.waitForFunction(() => document.getElementById('meeting').dataset.role === 'follower', null, { timeout: WAIT });
+    await page.waitForFunction(() => /^1 following/.test(document.getElementById('meeting-status').textContent), null, { timeout: WAIT });
+    const turned = await stillAfter(page, async () => {
+      await page.locator('#viewer').focus();
+      await page.keyboard.down('ArrowLeft');
+      await page.waitForTimeout(500);
+      await page.keyboard.up('ArrowLeft');
+    });
+    await follower.waitForFunction((yaw) => Math.abs(JSON.parse(document.getElementById('frame').dataset.camera).yaw - yaw) < 0.01, turned.yaw, { timeout: WAIT });
+    await follower.locator('#meeting-detach').click();
+    await follower.waitForFunction(() => document.getElementById('meeting').dataset.role === 'detached', null, { timeout: WAIT });
+    await follower.locator('#meeting-rejoin').click();
+    await follower.waitForFunction(() => document.getElementById('meeting').dataset.role === 'follower', null, { timeout: WAIT });
+    await page.locator('#meeting-close').click();
+    await follower.waitForFunction(() => /meeting ended/.test(document.getElementById('message').textContent), null, { timeout: WAIT });
+    assert.ok(await follower.locator('#meeting').isHidden(), 'the meeting panel goes');
+    await follower.close();
+    await page.waitForFunction(() => document.getElementById('meeting').hidden, null, { timeout: WAIT });
+    camera = await settledStill(page);
   });
 
   await check('dragging changes the view', async () => {
