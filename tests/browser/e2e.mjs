@@ -415,6 +415,8 @@ try {
     await follower.goto(`${base}/?meeting=${code}`);
     await follower.waitForFunction(() => document.getElementById('meeting').dataset.role === 'follower', null, { timeout: WAIT });
     await page.waitForFunction(() => /^1 following/.test(document.getElementById('meeting-status').textContent), null, { timeout: WAIT });
+    await page.locator('#meeting').scrollIntoViewIfNeeded();
+    await shot(page, 'meeting');
     const turned = await stillAfter(page, async () => {
       await page.locator('#viewer').focus();
       await page.keyboard.down('ArrowLeft');
@@ -716,8 +718,8 @@ try {
   await check('mapping a layer shows it in the frame, the time slider changes the frame', async () => {
     // A link into the layer's part of the scene (the west), looking down at the ground.
     await page.goto(`${base}/?x=-800&y=0&eye_height=1.7&yaw=90&pitch=-40&fov=60`);
-    const opened = await nextStill(page, 0);
     await page.waitForFunction(() => document.body.dataset.mode === 'planner', null, { timeout: WAIT });
+    const opened = await settledStill(page);
     assert.ok(Math.abs(opened.position[0] + 800) < 0.01 && Math.abs(opened.yaw - 90) < 0.01, `the link's view: ${JSON.stringify(opened)}`);
     await openPane(page, 'data');
     const target = page.locator(`#map-${layerId}-target`);
