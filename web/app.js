@@ -942,6 +942,8 @@ async function main() {
   setupLogin();
   setupConnection();
   setupMeeting();
+  // A link showing data opens on the data maps, their legends in sight.
+  if (app.view.mappings.length) app.selectTab('data');
   showPlanState();
   updateLink();
   document.body.dataset.ready = 'true';

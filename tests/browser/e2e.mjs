@@ -336,6 +336,7 @@ try {
     for (let i = 0; i < 2; i += 1) assert.ok(Math.abs(opened.position[i] - there.position[i]) < 0.01, 'the same place');
     assert.equal(await other.locator('#with-plan').getAttribute('aria-pressed'), 'false', 'the link opens the comparison: without the plan');
     await other.close();
+    await page.bringToFront();
     await stillAfter(page, () => page.locator('#with-plan').click());
   });
 
@@ -417,6 +418,8 @@ try {
     await page.waitForFunction(() => /^1 following/.test(document.getElementById('meeting-status').textContent), null, { timeout: WAIT });
     await page.locator('#meeting').scrollIntoViewIfNeeded();
     await shot(page, 'meeting');
+    // The presenter's page in front: a page behind others gets no animation frames.
+    await page.bringToFront();
     const turned = await stillAfter(page, async () => {
       await page.locator('#viewer').focus();
       await page.keyboard.down('ArrowLeft');
@@ -432,6 +435,7 @@ try {
     await follower.waitForFunction(() => /meeting ended/.test(document.getElementById('message').textContent), null, { timeout: WAIT });
     assert.ok(await follower.locator('#meeting').isHidden(), 'the meeting panel goes');
     await follower.close();
+    await page.bringToFront();
     await page.waitForFunction(() => document.getElementById('meeting').hidden, null, { timeout: WAIT });
     camera = await settledStill(page);
   });
@@ -703,6 +707,7 @@ try {
     assert.match(await item.locator('img.legend').getAttribute('alt'), /Legend of Test series/);
     await other.waitForFunction(() => /2 time steps/.test(document.querySelector('li.layer .summary')?.textContent), null, { timeout: 2000 });
     await other.close();
+    await page.bringToFront();
   });
 
   await check('a layer covering part of the scene says so and can be gone to', async () => {
@@ -746,11 +751,14 @@ try {
     // link and the legend, a changed picture.
     const ink = page.locator(`#map-${layerId}-color`);
     assert.ok(await ink.isHidden(), 'no ink picker for the color target');
+    // The frames of the last played steps first.
+    await settledStill(page);
     const coloured = await pixels(page);
     await stillAfter(page, () => target.selectOption('hatch_color'));
     assert.ok(await ink.isVisible(), 'an ink picker for hatch_color');
     assert.ok(await page.locator(`#map-${layerId}-colormap`).isHidden(), 'no colour map for hatch_color');
-    assert.ok(difference(coloured, await pixels(page)) > CHANGED, 'the hatch colour changed the picture');
+    const hatched = await pixels(page);
+    assert.ok(difference(coloured, hatched) > CHANGED, `the hatch colour changed the picture (${difference(coloured, hatched).toFixed(2)}; ${await page.locator('#message').textContent()}; ${page.url()})`);
     await linked(page, 'mappings', (v) => v && JSON.parse(v)[0].target === 'hatch_color' && JSON.parse(v)[0].color.length === 3);
     const legend = await page.locator(`li.layer[data-layer="${layerId}"] img.legend`).getAttribute('src');
     assert.match(legend, /target=hatch_color&color=0\.835%2C0\.369%2C0\b/, 'the legend ramps to the default ink');
@@ -767,6 +775,8 @@ try {
     const other = watch(await context.newPage());
     await other.goto(link);
     const opened = await settledStill(other);
+    assert.equal(await other.locator('#tab-data').getAttribute('aria-selected'), 'true', 'a link with a data layer opens on the data maps');
+    assert.ok(await other.locator('li.layer img.legend').isVisible(), 'with the legend in sight');
     for (let i = 0; i < 3; i += 1) {
       assert.ok(Math.abs(opened.position[i] - shown.position[i]) < 0.01, `position ${i}: ${shown.position} vs ${opened.position}`);
     }
@@ -788,6 +798,7 @@ try {
     const session = await pixels(other);
     assert.ok(difference(session, rest) < 4, `the session and GET /api/render show the same picture (${difference(session, rest).toFixed(2)})`);
     await other.close();
+    await page.bringToFront();
   });
 
   await check('the screenshot is a full-quality PNG of the same view', async () => {
@@ -878,6 +889,7 @@ try {
     const again = JSON.parse(await other.locator('#frame').getAttribute('data-camera'));
     assert.ok(Math.abs(again.yaw - turned.yaw) < 0.01, `the view survived: yaw ${turned.yaw} → ${again.yaw}`);
     await other.close();
+    await page.bringToFront();
   });
 
   await check('a link the server refuses falls back to the default view with the reason', async () => {
@@ -890,6 +902,7 @@ try {
     assert.deepEqual(shown.position.slice(0, 2), initial.position.slice(0, 2), 'the default view');
     await linked(other, 'x', (v) => v !== '5000');
     await other.close();
+    await page.bringToFront();
   });
 
   await check('logout hides the planner controls', async () => {
