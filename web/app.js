@@ -31,6 +31,8 @@ const PLAN_MARGIN = 80;
 /** "Fly up for an overview": metres the eye rises and the downward look in degrees. */
 const FLY_LIFT = 120;
 const FLY_PITCH = -20;
+/** The default view's downward look on a portrait screen, in degrees. */
+const PORTRAIT_PITCH = -10;
 const STILL_QUALITY = 90;
 const LINK_DELAY_MS = 300;
 const RESIZE_DELAY_MS = 250;
@@ -927,6 +929,11 @@ async function main() {
   app.base = defaultView(scene);
   const warnings = [];
   app.view = fromQuery(window.location.search, app.base, warnings);
+  // A portrait screen shows the default view looking a little down: not half sky.
+  const viewer = $('viewer');
+  if (!new URLSearchParams(window.location.search).has('pitch') && viewer.clientHeight > viewer.clientWidth * 1.2) {
+    app.view.pitch = Math.min(app.view.pitch, PORTRAIT_PITCH);
+  }
   if (warnings.length) say(warnings.join('; '));
   const camera = openapi.components?.schemas?.CameraParams?.properties ?? {};
   $('plan').hidden = !('mode' in camera);

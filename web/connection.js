@@ -40,9 +40,13 @@ export function backoffDelay(attempt, random = Math.random) {
   return Math.round(base * (0.75 + 0.5 * random()));
 }
 
-/** The readout of a session's `stats`: `12.0 fps · latency 85 ms · rtt 3 ms · render 40 ms`, figures not known yet left out. */
+/**
+ * The readout of a session's `stats`: `12.0 fps · latency 85 ms · rtt 3 ms · render 40 ms`,
+ * figures not known yet left out; `idle` instead of `0.0 fps` (no frames come while the view
+ * rests, which is no fault).
+ */
 export function statsText(stats) {
-  const parts = [`${stats.fps.toFixed(1)} fps`];
+  const parts = [stats.fps > 0 ? `${stats.fps.toFixed(1)} fps` : 'idle'];
   if (stats.latencyMs != null) parts.push(`latency ${Math.round(stats.latencyMs)} ms`);
   if (stats.rttMs != null) parts.push(`rtt ${Math.round(stats.rttMs)} ms`);
   if (stats.renderMs != null) parts.push(`render ${stats.renderMs} ms`);

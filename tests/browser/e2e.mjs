@@ -400,7 +400,7 @@ try {
     await login(page, TOKEN);
     assert.equal(await page.locator('body').getAttribute('data-mode'), 'planner');
     assert.ok(await page.locator('#tab-style').isVisible(), 'the style panel');
-    await page.waitForFunction(() => /fps/.test(document.getElementById('stats').textContent), null, { timeout: WAIT });
+    await page.waitForFunction(() => /fps|idle/.test(document.getElementById('stats').textContent), null, { timeout: WAIT });
     assert.deepEqual(await axeViolations(page), [], 'axe-core: no serious or critical violations in planner mode');
     await shot(page, 'planner');
     camera = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));

@@ -46,3 +46,10 @@ test('the language is the stored one, else the browser\'s if offered, else Engli
   assert.equal(initialLanguage(null, ['de-CH', 'en']), 'de');
   assert.equal(initialLanguage('xx', ['fr-FR']), 'en');
 });
+
+test('a report picture says what it shows: caption with or without the plan, eye height or width', async () => {
+  const { reportText } = await import('../../web/report.js');
+  const words = { caption: 'Place — view to the west', planCaption: 'Place — seen from above', plan: 'without the plan', width: 'Picture 900 m across', eye: 'Eye 1.7 m above the ground', credit: 'Drawn with landsketch' };
+  assert.deepEqual(reportText({ plan: null }, words), { caption: 'Place — view to the west (without the plan)', note: 'Eye 1.7 m above the ground', credit: 'Drawn with landsketch' });
+  assert.deepEqual(reportText({ plan: { width: 900 } }, { ...words, plan: null }), { caption: 'Place — seen from above', note: 'Picture 900 m across', credit: 'Drawn with landsketch' });
+});
