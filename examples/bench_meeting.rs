@@ -122,14 +122,16 @@ async fn main() -> Result<()> {
         let _ = stopped.await;
     }));
     let client = reqwest::Client::new();
-    while client.get(format!("http://{addr}/api/health")).send().await.map(|r| r.status().as_u16()).unwrap_or(0) != 200 {
+    while client.get(format!("http://{addr}/api/health")).send().await.map(|r| r.status().as_u16()).unwrap_or(0) != 200
+    {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     let (w, h) = (args.width, args.height);
     let rss_before = rss_mib();
 
     // The presenter opens the meeting.
-    let (mut presenter, _) = tokio_tungstenite::connect_async(format!("ws://{addr}/api/ws?width={w}&height={h}&format=jpeg")).await?;
+    let (mut presenter, _) =
+        tokio_tungstenite::connect_async(format!("ws://{addr}/api/ws?width={w}&height={h}&format=jpeg")).await?;
     next_frame(&mut presenter, |_| {}).await?;
     presenter.send(Message::text(r#"{"type": "open_meeting", "caption": "benchmark"}"#)).await?;
     let mut code = None;
@@ -220,7 +222,11 @@ async fn main() -> Result<()> {
         args.followers
     );
     println!("| measure | value |\n| --- | --- |");
-    println!("| presenter frames (moving + final still) | {frames} ({moving_frames} + {}), {:.2}/s |", frames - moving_frames, frames as f64 / elapsed);
+    println!(
+        "| presenter frames (moving + final still) | {frames} ({moving_frames} + {}), {:.2}/s |",
+        frames - moving_frames,
+        frames as f64 / elapsed
+    );
     println!("| renders during the run (`landsketch_render_seconds_count`) | {renders:.0} |");
     println!("| renders for the meeting (`landsketch_meeting_renders_total`, since opening) | {meeting_renders:.0} |");
     println!(
@@ -240,7 +246,9 @@ async fn main() -> Result<()> {
         percentile(&delays, 0.95),
         delays.last().copied().unwrap_or(f64::NAN)
     );
-    println!("| RSS (server and clients) before / during / after | {rss_before:.0} / {rss_during:.0} / {rss_after:.0} MiB |");
+    println!(
+        "| RSS (server and clients) before / during / after | {rss_before:.0} / {rss_during:.0} / {rss_after:.0} MiB |"
+    );
     let _ = stop_server.send(());
     running.await??;
     Ok(())

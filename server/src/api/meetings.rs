@@ -5,6 +5,9 @@
 //! newest one instead of holding up the presenter or the other followers, and each follower's
 //! sends keep the session's send deadline (`--ws-send-timeout-s`).
 //!
+//! Meetings are recorded in the participation store (code, presenter session, opened and
+//! closed times) for the record; the live state (frames, followers) is in memory only.
+//!
 //! REST: `POST /api/meetings` (open one for a session), `GET /api/meetings/{code}`,
 //! `GET /api/meetings/{code}/qr.svg` (the join link as QR code), `DELETE /api/meetings/{code}`.
 
@@ -14,6 +17,7 @@ use super::error::{ApiError, ErrorBody};
 use super::metrics::{MeetingLabels, Metrics};
 use super::view::ViewRequest;
 use crate::echo::echo;
+use crate::store::participation::{self, ParticipationStore};
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
@@ -131,6 +135,8 @@ pub struct Meeting {
     status: watch::Sender<MeetingStatus>,
     renders: AtomicU64,
     metrics: Metrics,
+    /// Recording the meeting in the store; closing it waits for that.
+    recorded: Mutex<Option<tokio::task::JoinHandle<()>>>,
 }
 
 impl Meeting {
@@ -274,12 +280,13 @@ struct Registry {
 pub struct Meetings {
     registry: Arc<Registry>,
     metrics: Metrics,
+    store: Arc<dyn ParticipationStore>,
 }
 
 impl Meetings {
-    /// No meetings; counts in `metrics`.
-    pub fn new(metrics: Metrics) -> Meetings {
-        Meetings { registry: Arc::default(), metrics }
+    /// No meetings; counts in `metrics`, records them in `store`.
+    pub fn new(metrics: Metrics, store: Arc<dyn ParticipationStore>) -> Meetings {
+        Meetings { registry: Arc::default(), metrics, store }
     }
 
     fn lock_open(&self) -> MutexGuard<'_, HashMap<String, Arc<Meeting>>> {
@@ -310,7 +317,26 @@ impl Meetings {
             status: watch::Sender::new(status),
             renders: AtomicU64::new(0),
             metrics: self.metrics.clone(),
+            recorded: Mutex::new(None),
         });
+        let (store, record) = (
+            self.store.clone(),
+            participation::Meeting {
+                code: code.clone(),
+                presenter: format!("session {presenter}"),
+                created_ms: participation::now_ms(),
+                closed_ms: None,
+            },
+        );
+        let recording = in_background(async move {
+            match store.add_meeting(record).await {
+                Ok(true) => {}
+                // A code is unique among open meetings; an old closed one may have had it.
+                Ok(false) => tracing::warn!("a past meeting had this code; the meeting is not recorded"),
+                Err(error) => tracing::error!(%error, "the meeting cannot be recorded"),
+            }
+        });
+        *meeting.recorded.lock().unwrap_or_else(PoisonError::into_inner) = recording;
         open.insert(code.clone(), meeting.clone());
         self.metrics.meetings.set(i64::try_from(open.len()).unwrap_or(i64::MAX));
         self.metrics.meeting_followers.get_or_create(&meeting.labels()).set(0);
@@ -341,6 +367,17 @@ impl Meetings {
         meeting.status.send_modify(|s| s.ended = Some(reason));
         self.metrics.meeting_followers.remove(&meeting.labels());
         self.metrics.meeting_renders.remove(&meeting.labels());
+        let recording = meeting.recorded.lock().unwrap_or_else(PoisonError::into_inner).take();
+        let (store, code_closed) = (self.store.clone(), code.to_owned());
+        in_background(async move {
+            if let Some(recording) = recording {
+                // Nothing to close when recording failed; the error was logged.
+                let _ = recording.await;
+            }
+            if let Err(error) = store.close_meeting(&code_closed, participation::now_ms()).await {
+                tracing::error!(%error, "the meeting's end cannot be recorded");
+            }
+        });
         tracing::info!(meeting = %code, reason, renders = meeting.renders.load(Ordering::Relaxed), "meeting ended");
     }
 
@@ -364,6 +401,12 @@ impl Meetings {
             .map_err(|_| ApiError::Conflict(format!("session {session} is closing or busy; open the meeting again")))?;
         Ok(meeting)
     }
+}
+
+/// Runs a store write on the runtime, if there is one (a session that ends while the runtime
+/// shuts down records nothing).
+fn in_background(task: impl Future<Output = ()> + Send + 'static) -> Option<tokio::task::JoinHandle<()>> {
+    tokio::runtime::Handle::try_current().ok().map(|runtime| runtime.spawn(task))
 }
 
 /// Whether a client may open or close a meeting: the admin guard admitted it (its token, or
@@ -552,7 +595,10 @@ mod tests {
 
     #[tokio::test]
     async fn a_meeting_fans_one_frame_out_and_ends_with_its_presenter() {
-        let meetings = Meetings::new(Metrics::new());
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let store: Arc<dyn ParticipationStore> =
+            Arc::new(participation::SqlStore::open_in(dir.path()).await.expect("store"));
+        let meetings = Meetings::new(Metrics::new(), store.clone());
         let presenter = meetings.open(7, Some("Hello".into())).expect("open");
         assert!(matches!(meetings.open(7, None), Err(ApiError::Conflict(_))));
         let code = presenter.meeting.code.clone();
@@ -583,6 +629,19 @@ mod tests {
         a.status.changed().await.expect("status");
         assert_eq!(a.status.borrow().ended, Some("the presenter left"));
         assert!(matches!(meetings.find(&code), Err(ApiError::NotFound(_))));
+        // The store has the meeting, closed.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        loop {
+            let recorded = store.meeting(&code).await.expect("store");
+            if let Some(recorded) = recorded
+                && recorded.closed_ms.is_some_and(|closed| closed >= recorded.created_ms)
+            {
+                assert_eq!(recorded.presenter, "session 7");
+                break;
+            }
+            assert!(std::time::Instant::now() < deadline, "the end was not recorded");
+            tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+        }
     }
 
     fn test_view() -> ViewRequest {

@@ -133,7 +133,7 @@ impl AppState {
         AppState(Arc::new(Inner {
             decodes,
             config,
-            meetings: meetings::Meetings::new(metrics.clone()),
+            meetings: meetings::Meetings::new(metrics.clone(), participation.clone()),
             metrics,
             store,
             participation,

@@ -833,6 +833,8 @@ impl<'a> Session<'a> {
     /// (the still after rest, or the next paced interactive frame).
     fn schedule(&mut self, now: Instant) {
         if self.is_following() {
+            // A follower renders nothing and needs no wake-up.
+            self.wake_at = None;
             return;
         }
         let config = self.state.config();
