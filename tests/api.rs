@@ -157,6 +157,46 @@ async fn health_scene_metrics_and_openapi_describe_the_server() {
     }
 }
 
+/// The scene's `[about]` and the layers' extents (the browser's welcome, "go to the plan"),
+/// and `GET /api/auth`, the planner login's check: 200 with the token, 401 without or wrong;
+/// without a configured token, 200 for a loopback client.
+#[tokio::test]
+async fn scene_about_layer_extents_and_the_planner_login_check() {
+    let server = TestServer::shared();
+    let scene = json_of(get(&server.url("/api/scene")).await).await;
+    let about = &scene["about"];
+    assert_eq!(about["plan_layer"], "planned");
+    assert!(about["title"].as_str().is_some_and(|t| t.contains("Boulder")), "{about}");
+    for key in ["description", "plan_summary", "attribution"] {
+        assert!(about[key].as_str().is_some_and(|t| t.len() > 20), "{key}: {about}");
+    }
+    let (min, max) = (&scene["extent"]["min"], &scene["extent"]["max"]);
+    let planned = scene["layers"].as_array().and_then(|l| l.iter().find(|l| l["name"] == "planned")).expect("planned");
+    let extent = &planned["extent"];
+    for axis in 0..2 {
+        let (lo, hi) = (extent["min"][axis].as_f64().expect("min"), extent["max"][axis].as_f64().expect("max"));
+        assert!(min[axis].as_f64() <= Some(lo) && lo < hi && Some(hi) <= max[axis].as_f64(), "{extent} in {min} {max}");
+    }
+
+    let open = json_of(get(&server.url("/api/auth")).await).await;
+    assert_eq!(open, json!({"token_required": false}), "no token configured: loopback is admitted");
+    let guarded = TestServer::guarded();
+    let ask = |token: Option<&'static str>| {
+        let mut request = client().get(guarded.url("/api/auth"));
+        if let Some(token) = token {
+            request = request.bearer_auth(token);
+        }
+        request.send()
+    };
+    let admitted = ask(Some("s3cret")).await.expect("auth");
+    assert_eq!(admitted.status().as_u16(), 200);
+    assert_eq!(json_of(admitted).await, json!({"token_required": true}));
+    for wrong in [None, Some("s3cre"), Some("S3cret")] {
+        let refused = ask(wrong).await.expect("auth");
+        assert_error(refused, 401, "unauthorized", None).await;
+    }
+}
+
 #[tokio::test]
 async fn get_and_post_render_the_same_bytes_and_the_link_round_trips() {
     let server = TestServer::shared();

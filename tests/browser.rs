@@ -1,5 +1,6 @@
-//! End-to-end tests of the browser UI (issue #8): starts a real server with the sample scene and
-//! an empty layer store, then runs `node tests/browser/e2e.mjs <base-url>`, which drives
+//! End-to-end tests of the browser UI (issues #8, #15): starts a real server with the sample
+//! scene, an empty layer store and an admin token (so the planner's login and authorised
+//! uploads are exercised), then runs `node tests/browser/e2e.mjs <base-url>`, which drives
 //! headless Chromium with Playwright (see that file for the checks). Needs Node.js, Debian's
 //! `chromium` (or `$CHROMIUM`) and `npm ci` in `tests/browser/` — `scripts/setup` installs all
 //! three. `LANDSKETCH_UI_SCREENSHOTS=DIR` also writes the README's screenshots to DIR.
@@ -30,13 +31,20 @@ fn require_tools() -> String {
     chromium
 }
 
+/// The planner's token of the test server.
+const ADMIN_TOKEN: &str = "e2e-planner-token";
+
 #[test]
 fn browser_ui_end_to_end() {
     let chromium = require_tools();
     let data = tempfile::tempdir().expect("temp dir");
-    let server = TestServer::start(data.path(), |_| {});
+    let server = TestServer::start(data.path(), |config| config.admin_token = Some(ADMIN_TOKEN.into()));
     let mut command = Command::new("node");
-    command.arg("tests/browser/e2e.mjs").arg(server.url("")).env("CHROMIUM", chromium);
+    command
+        .arg("tests/browser/e2e.mjs")
+        .arg(server.url(""))
+        .env("CHROMIUM", chromium)
+        .env("LANDSKETCH_ADMIN_TOKEN", ADMIN_TOKEN);
     if let Ok(dir) = std::env::var("LANDSKETCH_UI_SCREENSHOTS") {
         command.arg("--screenshots").arg(dir);
     }

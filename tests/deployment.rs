@@ -89,8 +89,11 @@ fn kubernetes_example_is_valid_with_probes_affinity_and_known_flags() {
         }
     }
     // Every Secret a pod refers to is in the example.
-    let secrets: BTreeSet<&str> =
-        docs.iter().filter(|d| d["kind"].as_str() == Some("Secret")).filter_map(|d| d["metadata"]["name"].as_str()).collect();
+    let secrets: BTreeSet<&str> = docs
+        .iter()
+        .filter(|d| d["kind"].as_str() == Some("Secret"))
+        .filter_map(|d| d["metadata"]["name"].as_str())
+        .collect();
     for volume in deployment["spec"]["template"]["spec"]["volumes"].as_vec().expect("volumes") {
         if let Some(secret) = volume["secret"]["secretName"].as_str() {
             assert!(secrets.contains(secret), "the Secret {secret} is defined");

@@ -81,6 +81,7 @@ fn forest_scene() -> Scene {
         layers: vec![VegetationLayer { name: "existing".into(), plants }],
         sun: Sun { azimuth: 165.0, elevation: 35.0 },
         default_camera: Camera::perspective([200.0, -300.0, 120.0], 0.0, -5.0, 60.0),
+        about: Default::default(),
     }
 }
 

@@ -1,8 +1,9 @@
 //! Participation (issue #14) over real servers on loopback: comments pinned at a pixel of a
 //! synthetic sloping scene land on the terrain (within one cell), survive a restart, export as
 //! GeoJSON and CSV, are moderated (hidden ones never public), refuse every bad input, are
-//! rate-limited, and reach other WebSocket sessions live; viewpoints from the scene file and
-//! the admin API.
+//! rate-limited, and reach other WebSocket sessions live; they are drawn as pins where they
+//! were made, over REST and in a session that follows them live (hidden ones never);
+//! viewpoints from the scene file and the admin API.
 
 mod common;
 
@@ -563,4 +564,140 @@ async fn the_sample_scene_has_viewpoints_that_render_and_the_openapi_document_li
         assert!(openapi["paths"][path][method].is_object(), "OpenAPI lacks {method} {path}");
     }
     assert!(openapi["components"]["schemas"]["Changed"].is_object());
+}
+
+/// Pixels that differ between two same-sized RGBA images, as (column, row).
+fn differing(a: &image::RgbaImage, b: &image::RgbaImage) -> Vec<(u32, u32)> {
+    a.enumerate_pixels()
+        .filter(|&(x, y, p)| p.0.iter().zip(b.get_pixel(x, y).0).any(|(u, v)| u.abs_diff(v) > 24))
+        .map(|(x, y, _)| (x, y))
+        .collect()
+}
+
+async fn render(server: &TestServer, body: &Value) -> (String, image::RgbaImage) {
+    let response = post_json(&server.url("/api/render"), body).await;
+    assert_eq!(response.status(), 200, "{body}");
+    let etag = response.headers()["etag"].to_str().expect("etag").to_owned();
+    let bytes = response.bytes().await.expect("image");
+    (etag, image::load_from_memory(&bytes).expect("PNG").to_rgba8())
+}
+
+/// Where a scene point lands in a `width` × `height` image of `camera`.
+fn project(camera: &Camera, point: [f64; 3], width: u32, height: u32) -> (f32, f32) {
+    let clip = camera.projection(width as f32 / height as f32)
+        * camera.view()
+        * glam::Vec4::new(point[0] as f32, point[1] as f32, point[2] as f32, 1.0);
+    let ndc = clip.truncate() / clip.w;
+    ((ndc.x + 1.0) / 2.0 * width as f32, (1.0 - ndc.y) / 2.0 * height as f32)
+}
+
+#[tokio::test]
+async fn comments_are_drawn_as_pins_where_they_were_made_and_hidden_ones_never() {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let (server, _scene) = start(dir.path(), "", Some(ADMIN));
+    let made =
+        json_of(post_json(&server.url("/api/comments"), &comment_body("A bench here", [60, 70], TOKEN)).await).await;
+    let point = position_of(&made);
+
+    // From elsewhere: south of the point, looking north at it from 80 m.
+    let (w, h) = (200, 150);
+    let eye = [point[0] as f32, point[1] as f32 - 80.0, point[2] as f32 + 25.0];
+    let camera = Camera::perspective(eye, 0.0, -15.0, 60.0);
+    let view = |comments: bool| json!({"camera": {"position": eye, "yaw": 0.0, "pitch": -15.0, "fov": 60.0}, "width": w, "height": h, "comments": comments});
+    let (plain_tag, plain) = render(&server, &view(false)).await;
+    let (pinned_tag, pinned) = render(&server, &view(true)).await;
+    assert_ne!(plain_tag, pinned_tag, "the pins are part of the view's ETag");
+    let (px, py) = project(&camera, point, w, h);
+    let changed = differing(&plain, &pinned);
+    assert!(!changed.is_empty(), "the pin is drawn");
+    for &(x, y) in &changed {
+        // The stem rises from the ground point to the head above it.
+        assert!(
+            (x as f32 - px).abs() <= 24.0 && y as f32 <= py + 6.0 && y as f32 >= py - 70.0,
+            "ink at ({x}, {y}) is not at the pin standing on ({px:.0}, {py:.0})"
+        );
+    }
+    assert!(
+        changed.iter().any(|&(x, y)| (x as f32 - px).abs() <= 3.0 && (y as f32 - py).abs() <= 8.0),
+        "the stem reaches the ground point ({px:.0}, {py:.0})"
+    );
+
+    // From above (plan view centred on the point) the pin is at the centre.
+    let plan = |comments: bool| json!({"camera": {"mode": "plan", "center": [point[0], point[1]], "width": 120.0}, "width": 160, "height": 120, "comments": comments});
+    let plan_changed = differing(&render(&server, &plan(false)).await.1, &render(&server, &plan(true)).await.1);
+    assert!(!plan_changed.is_empty(), "the pin is drawn in the plan view");
+    assert!(plan_changed.iter().all(|&(x, y)| x.abs_diff(80) <= 24 && y.abs_diff(60) <= 70), "{plan_changed:?}");
+
+    // The link of a pinned view keeps the pins.
+    let link = get(&server.url(&format!("/api/render?{}", "comments=true"))).await;
+    assert_eq!(link.status(), 200);
+
+    // A hidden comment is not drawn any more, and a new one changes the ETag again.
+    let id = made["id"].as_i64().expect("id");
+    let hide = with_admin(client().post(server.url(&format!("/api/comments/{id}/hide")))).await;
+    assert_eq!(hide.status(), 200);
+    let (hidden_tag, hidden) = render(&server, &view(true)).await;
+    assert_ne!(hidden_tag, pinned_tag);
+    assert!(differing(&plain, &hidden).is_empty(), "a hidden comment is not drawn");
+}
+
+/// The image of the next still frame of a session (other messages are skipped).
+async fn next_still(socket: &mut Socket) -> image::RgbaImage {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+    let mut still = false;
+    loop {
+        let message = tokio::time::timeout_at(deadline, socket.next())
+            .await
+            .expect("a still frame in time")
+            .expect("the session is open")
+            .expect("message");
+        match message {
+            Message::Text(text) => {
+                let value: Value = serde_json::from_str(&text).expect("JSON");
+                if value["type"] == "frame" {
+                    still = value["still"] == true;
+                }
+            }
+            Message::Binary(bytes) if still => {
+                let header = landsketch::api::ws::HEADER_LEN;
+                return image::load_from_memory(&bytes[header..]).expect("PNG frame").to_rgba8();
+            }
+            _ => {}
+        }
+    }
+}
+
+#[tokio::test]
+async fn a_session_shows_comment_pins_that_follow_the_comments_live() {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let (server, _) = start(dir.path(), "", Some(ADMIN));
+    let made =
+        json_of(post_json(&server.url("/api/comments"), &comment_body("Shade here", [60, 70], TOKEN)).await).await;
+    let point = position_of(&made);
+    let (w, h) = (200, 150);
+    let eye = [point[0] as f32, point[1] as f32 - 80.0, point[2] as f32 + 25.0];
+    let (px, py) = project(&Camera::perspective(eye, 0.0, -15.0, 60.0), point, w, h);
+    let query = format!(
+        "x={}&y={}&z={}&yaw=0&pitch=-15&fov=60&width={w}&height={h}&format=png&comments=true",
+        eye[0], eye[1], eye[2]
+    );
+    let (mut socket, _) = tokio_tungstenite::connect_async(server.ws_url(&query)).await.expect("connect");
+    let pinned = next_still(&mut socket).await;
+    let send = |show: bool| Message::text(json!({"type": "comments", "show": show}).to_string());
+    futures_util::SinkExt::send(&mut socket, send(false)).await.expect("send");
+    let plain = next_still(&mut socket).await;
+    let changed = differing(&plain, &pinned);
+    assert!(!changed.is_empty(), "the session draws the pin");
+    assert!(
+        changed.iter().all(|&(x, y)| (x as f32 - px).abs() <= 24.0 && y as f32 <= py + 6.0),
+        "only the pin differs"
+    );
+
+    futures_util::SinkExt::send(&mut socket, send(true)).await.expect("send");
+    assert!(!differing(&plain, &next_still(&mut socket).await).is_empty(), "the pin is back");
+    // Hidden by a moderator: the session's next frame has no pin, without asking.
+    let id = made["id"].as_i64().expect("id");
+    let hide = with_admin(client().post(server.url(&format!("/api/comments/{id}/hide")))).await;
+    assert_eq!(hide.status(), 200);
+    assert!(differing(&plain, &next_still(&mut socket).await).is_empty(), "a hidden comment's pin goes away live");
 }

@@ -202,6 +202,11 @@ fn scene_file_errors_name_file_and_problem() {
 
     let camera = load_error(|t| t.replace("position = [205.0, 185.0]", "position = [90000.0, 0.0]"));
     assert!(camera.contains("outside the terrain"), "{camera}");
+
+    let plan = load_error(|t| t.replace("plan_layer = \"planned\"", "plan_layer = \"proposed\""));
+    assert!(plan.contains("about.plan_layer") && plan.contains("proposed") && plan.contains("planned"), "{plan}");
+    let about = load_error(|t| t.replace("[about]", "[about]\nsubtitle = \"x\""));
+    assert!(about.contains("subtitle"), "{about}");
 }
 
 #[test]

@@ -39,6 +39,7 @@ fn terrain_scene(n: usize, cell: f64, sun: Sun, height: impl Fn(f64, f64) -> f64
         layers: Vec::new(),
         sun,
         default_camera: Camera::perspective([0.0, -80.0, 20.0], 0.0, -10.0, 60.0),
+        about: Default::default(),
     }
 }
 

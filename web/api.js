@@ -24,6 +24,26 @@ export async function errorOf(response) {
   return new ApiError(response.status, detail?.code ?? 'http', message, detail?.parameter);
 }
 
+/** The planner's admin token (null for a citizen), sent with every write. */
+let adminToken = null;
+
+/** Sets the admin token the writes send (`null`: none). */
+export function setAdminToken(token) {
+  adminToken = token || null;
+}
+
+/** `init` with the planner's `Authorization` header when a token is set. */
+function authorized(init = {}) {
+  if (!adminToken) return init;
+  return { ...init, headers: { ...(init.headers ?? {}), Authorization: `Bearer ${adminToken}` } };
+}
+
+/** Asks the server whether `token` admits writes (`GET /api/auth`): its answer, or an `ApiError` (401/403). */
+export async function checkAuth(token) {
+  const headers = token ? { Authorization: `Bearer ${token}` } : {};
+  return getJSON('/api/auth', { headers });
+}
+
 /** Fetches `path`; throws an `ApiError` for an error status. */
 async function request(path, init) {
   const response = await fetch(path, init);
@@ -43,22 +63,22 @@ export async function getBlob(path) {
 
 /** Uploads a data layer as a multipart form (`POST /api/layers`); returns the layer's metadata. */
 export async function uploadLayer(form) {
-  return getJSON('/api/layers', { method: 'POST', body: form });
+  return getJSON('/api/layers', authorized({ method: 'POST', body: form }));
 }
 
 /** Deletes a data layer (`DELETE /api/layers/{id}`). */
 export async function deleteLayer(id) {
-  await request(`/api/layers/${encodeURIComponent(id)}`, { method: 'DELETE' });
+  await request(`/api/layers/${encodeURIComponent(id)}`, authorized({ method: 'DELETE' }));
 }
 
 /** Replaces art map `index` of `kind` (`tam`/`sam`), or adds one at the count, from a PNG (`PUT /api/artmaps/{kind}/{index}`). */
 export async function putArtMap(kind, index, png) {
-  return getJSON(`/api/artmaps/${kind}/${index}`, { method: 'PUT', headers: { 'Content-Type': 'image/png' }, body: png });
+  return getJSON(`/api/artmaps/${kind}/${index}`, authorized({ method: 'PUT', headers: { 'Content-Type': 'image/png' }, body: png }));
 }
 
 /** Restores a generated art map or removes the last added one (`DELETE /api/artmaps/{kind}/{index}`). */
 export async function deleteArtMap(kind, index) {
-  await request(`/api/artmaps/${kind}/${index}`, { method: 'DELETE' });
+  await request(`/api/artmaps/${kind}/${index}`, authorized({ method: 'DELETE' }));
 }
 
 /**

@@ -40,9 +40,13 @@ export function backoffDelay(attempt, random = Math.random) {
   return Math.round(base * (0.75 + 0.5 * random()));
 }
 
-/** The readout of a session's `stats`: `12.0 fps · latency 85 ms · rtt 3 ms · render 40 ms`, figures not known yet left out. */
+/**
+ * The readout of a session's `stats`: `12.0 fps · latency 85 ms · rtt 3 ms · render 40 ms`,
+ * figures not known yet left out; `idle` instead of `0.0 fps` (no frames come while the view
+ * rests, which is no fault).
+ */
 export function statsText(stats) {
-  const parts = [`${stats.fps.toFixed(1)} fps`];
+  const parts = [stats.fps > 0 ? `${stats.fps.toFixed(1)} fps` : 'idle'];
   if (stats.latencyMs != null) parts.push(`latency ${Math.round(stats.latencyMs)} ms`);
   if (stats.rttMs != null) parts.push(`rtt ${Math.round(stats.rttMs)} ms`);
   if (stats.renderMs != null) parts.push(`render ${stats.renderMs} ms`);
@@ -53,7 +57,10 @@ export function statsText(stats) {
  * A session that reconnects by itself. Events: `status` (detail: `{state, delayMs?, attempt?}`
  * with state `connecting`, `open`, `waiting`), `hello`, `frame` (detail: `{meta, header,
  * bitmap, latencyMs}`), `data` (the answer to a `data` control: time and warnings), `art_maps` (the server's art
- * maps changed: their counts; a new frame follows), `error`
+ * maps changed: their counts; a new frame follows), `changed` (comments, layers, viewpoints or
+ * art maps changed on the server: `{what, change, id?}`), `meeting` (the session's meeting:
+ * code, role, caption, followers, join and QR URLs), `meeting_ended`, `tour` (a tour's
+ * progress), `error`
  * (a server `error` message), `stats`.
  */
 export class Connection extends EventTarget {
@@ -159,6 +166,10 @@ export class Connection extends EventTarget {
         break;
       case 'data':
       case 'art_maps':
+      case 'changed':
+      case 'meeting':
+      case 'meeting_ended':
+      case 'tour':
         this.dispatchEvent(new CustomEvent(message.type, { detail: message }));
         break;
       case 'pong':

@@ -3,6 +3,8 @@
 // (target, colour map or hatch colour, range), the server's suitability warnings (thesis
 // Table 9.1), a delete button, and the time slider with play/pause and speed.
 
+import { t } from './i18n.js';
+
 /** Sub-steps of the time slider between two time steps of the data. */
 const SUBSTEPS = 8;
 /** Default inks of `hatch_color` mappings (the server's `fields::HATCH_COLORS`, Okabe–Ito). */
@@ -61,11 +63,38 @@ export function legendQuery(mapping) {
   return query.toString();
 }
 
+/**
+ * The legend image URL of `layer` drawn with `mapping`; the layer's steps and value range are
+ * part of it, so a new time step (a new range) is a new URL and never the browser's cached image.
+ */
+export function legendUrl(layer, mapping) {
+  const query = legendQuery(mapping);
+  const version = `v=${layer.steps.length}-${layer.min}-${layer.max}`;
+  return `/api/layers/${encodeURIComponent(layer.id)}/legend.png?${query ? `${query}&` : ''}${version}`;
+}
+
+/**
+ * The share (0…1) of the scene `extent` (`{min, max}`) a layer's `scene_extent`
+ * (`[min_x, min_y, max_x, max_y]`) covers, and the covered part as `{min, max}` (null outside).
+ */
+export function coverage(sceneExtent, layerExtent) {
+  if (!layerExtent) return { share: 1, part: sceneExtent };
+  const min = [Math.max(sceneExtent.min[0], layerExtent[0]), Math.max(sceneExtent.min[1], layerExtent[1])];
+  const max = [Math.min(sceneExtent.max[0], layerExtent[2]), Math.min(sceneExtent.max[1], layerExtent[3])];
+  const area = (a, b) => Math.max(0, b[0] - a[0]) * Math.max(0, b[1] - a[1]);
+  const inside = area(min, max);
+  const share = inside / Math.max(1e-9, area(sceneExtent.min, sceneExtent.max));
+  return { share, part: inside > 0 ? { min, max } : null };
+}
+
+/** Layers covering less than this share of the scene get a coverage note. */
+const PARTIAL = 0.95;
+
 export class DataPanel {
   /**
    * `options`: `targets` (mapping targets, empty when the server cannot map data),
-   * `colormaps` (names), `timeSupported`, `onMappings(mappings)`, `onTime(iso)`,
-   * `onDelete(layer)`.
+   * `colormaps` (names), `timeSupported`, `extent` (the scene's), `onMappings(mappings)`,
+   * `onTime(iso)`, `onDelete(layer)`, `onGoTo(part)` (show the covered part `{min, max}`).
    */
   constructor(options) {
     this.options = options;
@@ -105,24 +134,41 @@ export class DataPanel {
     const li = element('li', { className: 'layer', id });
     li.dataset.layer = layer.id;
     const steps = layer.steps.filter((s) => s.time);
+    const units = layer.units ? ` ${layer.units}` : '';
     const range = layer.kind === 'label'
-      ? `${layer.classes.length} classes`
-      : `${layer.min.toPrecision(4)} … ${layer.max.toPrecision(4)}${layer.units ? ` ${layer.units}` : ''}`;
-    const when = steps.length ? ` · ${steps.length} time step${steps.length > 1 ? 's' : ''}` : '';
+      ? t('layer.classes', { n: layer.classes.length })
+      : `${layer.min.toPrecision(4)}${units} … ${layer.max.toPrecision(4)}${units}`;
+    const when = steps.length ? ` · ${t('layer.steps', { n: steps.length })}` : '';
     li.append(
       element('h3', { textContent: layer.name }),
-      element('p', { className: 'meta', textContent: `${layer.kind} · ${range}${when} · ${layer.crs} · ${layer.source}` }),
+      element('p', { className: 'summary', textContent: `${range}${when}` }),
+      element('p', { className: 'meta planner-only', textContent: `${layer.kind} · ${layer.crs} · ${layer.source}` }),
     );
+    if (this.options.extent) {
+      const { share, part } = coverage(this.options.extent, layer.scene_extent);
+      if (share < PARTIAL) {
+        const note = element('p', {
+          className: 'coverage',
+          textContent: part ? t('layer.coverage', { pct: Math.max(1, Math.round(share * 100)) }) : t('layer.outside'),
+        });
+        li.append(note);
+        if (part) {
+          const go = element('button', { type: 'button', className: 'goto', textContent: t('layer.goto') });
+          go.addEventListener('click', () => this.options.onGoTo(part));
+          li.append(go);
+        }
+      }
+    }
     if (this.options.targets.length) li.append(this.mappingControls(layer, mapping));
     const legend = element('img', {
       className: 'legend',
-      alt: `Legend of ${layer.name}${layer.units ? ` in ${layer.units}` : ''}`,
-      src: `/api/layers/${encodeURIComponent(layer.id)}/legend.png?${legendQuery(mapping)}`,
+      alt: `${t('layer.legend', { name: layer.name })}${units ? ` (${layer.units})` : ''}`,
+      src: legendUrl(layer, mapping),
       width: 320,
     });
-    li.append(legend, element('p', { className: 'units', textContent: `Units: ${layer.units ?? 'none given'}` }));
-    const remove = element('button', { type: 'button', className: 'danger small', textContent: 'Delete…' });
-    remove.setAttribute('aria-label', `Delete layer ${layer.name}`);
+    li.append(legend, element('p', { className: 'units', textContent: t('layer.units', { u: layer.units ?? t('layer.noUnits') }) }));
+    const remove = element('button', { type: 'button', className: 'danger small planner-only', textContent: t('layer.delete') });
+    remove.setAttribute('aria-label', `${t('layer.delete')} ${layer.name}`);
     remove.addEventListener('click', () => this.options.onDelete(layer));
     li.append(remove);
     return li;
@@ -132,8 +178,8 @@ export class DataPanel {
     const base = `map-${layer.id}`;
     const box = element('div', { className: 'mapping' });
     const target = element('select', { id: `${base}-target` });
-    target.append(new Option('not shown', ''));
-    for (const t of this.options.targets) target.append(new Option(t.replaceAll('_', ' '), t));
+    target.append(new Option(t('mapping.none'), ''));
+    for (const name of this.options.targets) target.append(new Option(t(`mapping.${name}`), name));
     target.value = mapping?.target ?? '';
     const colormap = element('select', { id: `${base}-colormap` });
     colormap.append(new Option('default', ''));
@@ -161,7 +207,8 @@ export class DataPanel {
       colormapField.hidden = !inkField.hidden;
     };
     showFields();
-    box.append(field('Show as', target), colormapField, inkField, rangeRow, reverseRow);
+    for (const node of [colormapField, inkField, rangeRow, reverseRow]) node.classList.add('planner-only');
+    box.append(field(t('mapping.showAs'), target), colormapField, inkField, rangeRow, reverseRow);
     const changed = () => {
       showFields();
       const others = this.mappings.filter((m) => m.layer !== layer.id);
@@ -176,7 +223,7 @@ export class DataPanel {
       }
       this.mappings = others;
       const img = box.parentElement?.querySelector('img.legend');
-      if (img) img.src = `/api/layers/${encodeURIComponent(layer.id)}/legend.png?${legendQuery(this.mappingOf(layer.id))}`;
+      if (img) img.src = legendUrl(layer, this.mappingOf(layer.id));
       this.updateTime();
       this.options.onMappings(this.mappings);
     };

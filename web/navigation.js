@@ -1,6 +1,7 @@
 // Walking navigation on the viewer: mouse drag looks around, WASD/arrow keys walk, the wheel
-// sets the walking speed, Q/E lower and raise the eye; on touch screens one finger looks and
-// two fingers walk. In a plan view, dragging pans the map and the wheel zooms. The camera is
+// sets the walking speed, Q/E lower and raise the eye; on touch screens one finger looks, two
+// fingers walk and pinching zooms (the field of view). In a plan view, dragging pans the map
+// and the wheel or a pinch zooms. The camera is
 // the client's (`view`); the server puts a walking eye at its height above the terrain.
 
 /** Walking speed bounds in metres per second; the wheel steps by a factor of 1.25. */
@@ -18,6 +19,9 @@ const RUN_FACTOR = 4;
 /** Smallest and largest plan-view width in metres. */
 const MIN_PLAN_WIDTH = 10;
 const MAX_PLAN_WIDTH = 100000;
+/** Field of view a pinch zooms within, in degrees. */
+const MIN_FOV = 10;
+const MAX_FOV = 100;
 
 const KEYS = {
   KeyW: ['forward', 1],
@@ -62,6 +66,16 @@ export function keepInside(view, extent) {
 export function turnView(view, yaw, pitch) {
   view.yaw = (((view.yaw + yaw) % 360) + 360) % 360;
   view.pitch = clamp(view.pitch + pitch, -89, 89);
+}
+
+/**
+ * A pinch by `ratio` (the fingers' new distance over the old): spreading zooms in — a narrower
+ * field of view, or a narrower plan view.
+ */
+export function pinch(view, ratio) {
+  if (!(ratio > 0)) return;
+  if (view.plan) view.plan.width = clamp(view.plan.width / ratio, MIN_PLAN_WIDTH, MAX_PLAN_WIDTH);
+  else view.fov = clamp(view.fov / ratio, MIN_FOV, MAX_FOV);
 }
 
 /** Mouse, keyboard, wheel and touch input on `surface`, applied to the view `getView()` gives. */
@@ -164,15 +178,24 @@ export class Navigator {
     this.pointers.delete(event.pointerId);
   }
 
+  /** Distance between the first two pointers on the surface (0 with fewer). */
+  spread() {
+    const [a, b] = this.pointers.values();
+    return a && b ? Math.hypot(a.x - b.x, a.y - b.y) : 0;
+  }
+
   pointerMove(event) {
     const last = this.pointers.get(event.pointerId);
     if (!last) return;
     const dx = event.clientX - last.x;
     const dy = event.clientY - last.y;
+    const before = this.spread();
     this.pointers.set(event.pointerId, { x: event.clientX, y: event.clientY });
+    const after = this.spread();
     const view = this.options.getView();
     const rect = this.surface.getBoundingClientRect();
     const count = this.pointers.size;
+    if (count >= 2 && before > 0 && after > 0) pinch(view, after / before);
     if (view.plan) {
       // Grab the map: it follows the pointer (one finger or the mouse; two fingers pan at half rate).
       const metres = view.plan.width / Math.max(1, rect.width) / count;

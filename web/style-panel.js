@@ -5,6 +5,7 @@
 // view's style) — and `StyleModel` keeps those edits as the short overrides a link carries and
 // shows the styles the server resolves from them (`POST /api/styles/resolve`).
 
+import { t } from './i18n.js';
 import { styleMessage } from './link.js';
 
 /** Fields shown first, open: the style axes of issue #8 where the schema has them. */
@@ -59,8 +60,11 @@ function groupOf(name) {
   return GROUPS.find(([prefix]) => prefix === first)?.[1] ?? 'More';
 }
 
-/** `snake_case` → "Snake case". */
+/** A field's label: its plain words where `web/i18n.js` has them (`style.f.<name>`), else `snake_case` → "Snake case". */
 export function labelOf(name) {
+  const key = `style.f.${name}`;
+  const plain = t(key);
+  if (plain !== key) return plain;
   const words = name.replaceAll('_', ' ');
   return words[0].toUpperCase() + words.slice(1);
 }
@@ -106,6 +110,7 @@ export class StylePanel {
   constructor(container, schema, onChange) {
     this.container = container;
     this.controls = new Map();
+    this.rows = new Map();
     this.onChange = onChange;
     const groups = new Map();
     for (const field of schema) {
@@ -114,6 +119,11 @@ export class StylePanel {
       groups.get(group).push(field);
     }
     const order = ['Main', ...new Set(GROUPS.map(([, title]) => title)), 'More'];
+    const advanced = document.createElement('details');
+    advanced.className = 'group advanced';
+    const advancedTitle = document.createElement('summary');
+    advancedTitle.textContent = t('style.advanced');
+    advanced.append(advancedTitle);
     for (const title of order) {
       const fields = groups.get(title);
       if (!fields) continue;
@@ -121,12 +131,19 @@ export class StylePanel {
       details.className = 'group';
       details.open = title === 'Main';
       const summary = document.createElement('summary');
-      summary.textContent = title;
+      summary.textContent = title === 'Main' ? t('style.main') : title;
       details.append(summary);
       if (title === 'Main') fields.sort((a, b) => MAIN.indexOf(a.name) - MAIN.indexOf(b.name));
       for (const field of fields) details.append(this.control(field));
-      container.append(details);
+      if (title === 'Main') container.append(details);
+      else advanced.append(details);
     }
+    container.append(advanced);
+  }
+
+  /** The row of field `name` (to show or hide it). */
+  rowOf(name) {
+    return this.rows.get(name) ?? null;
   }
 
   /** One labelled control for `field`. */
@@ -134,7 +151,12 @@ export class StylePanel {
     const id = `style-${field.name}`;
     const row = document.createElement('div');
     row.className = 'field';
-    row.title = field.doc;
+    this.rows.set(field.name, row);
+    // The field's help, visible (touch screens show no tooltips).
+    const help = document.createElement('p');
+    help.className = 'doc';
+    help.id = `${id}-doc`;
+    help.textContent = field.doc;
     const label = document.createElement('label');
     label.htmlFor = id;
     label.textContent = labelOf(field.name);
@@ -149,7 +171,8 @@ export class StylePanel {
         input.checked = Boolean(v);
       };
       row.classList.replace('field', 'check');
-      row.append(input, label);
+      input.setAttribute('aria-describedby', help.id);
+      row.append(input, label, help);
       this.controls.set(field.name, set);
       return row;
     }
@@ -210,7 +233,8 @@ export class StylePanel {
       box.append(number);
     }
     this.controls.set(field.name, set);
-    row.append(label, box);
+    box.querySelector('input, select')?.setAttribute('aria-describedby', help.id);
+    row.append(label, box, help);
     return row;
   }
 
@@ -300,9 +324,12 @@ export class StyleModel {
     }
   }
 
-  /** Drops the preset and fields of `target`. */
-  reset(view, target) {
-    this.setPreset(view, target, '');
+  /** Drops the preset and fields of the view and of every layer. */
+  resetAll(view) {
+    this.edits += 1;
+    view.preset = '';
+    view.style = {};
+    view.layerStyles = {};
   }
 
   store(view, target, layer) {

@@ -2,6 +2,7 @@
 // the server's answer inline — its validation message when the upload is refused.
 
 import { uploadLayer } from './api.js';
+import { t } from './i18n.js';
 
 /** Text fields sent only when filled in. */
 const OPTIONAL = ['time', 'crs', 'units'];
@@ -33,14 +34,14 @@ export function setupUpload(onUploaded) {
     const file = fileInput.files[0];
     if (file) body.set('file', file, file.name);
     submit.disabled = true;
-    say('busy', 'Uploading…');
+    say('busy', t('upload.busy'));
     try {
       const meta = await uploadLayer(body);
-      say('ok', `Stored “${meta.name}” (${meta.steps.length} step${meta.steps.length === 1 ? '' : 's'}).`);
+      say('ok', t(meta.steps.length === 1 ? 'upload.storedOne' : 'upload.stored', { name: meta.name, n: meta.steps.length }));
       onUploaded(meta);
     } catch (error) {
       const where = error.parameter ? ` (${error.parameter})` : '';
-      say('error', `The server refused the upload${where}: ${error.message}`);
+      say('error', t('upload.refused', { where, reason: error.message }));
     } finally {
       submit.disabled = false;
     }

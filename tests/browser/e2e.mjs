@@ -1,9 +1,11 @@
-// End-to-end tests of the browser UI (issue #8) in headless Chromium, driven by Playwright,
-// against a running landsketch server:
+// End-to-end tests of the browser UI (issues #8, #15) in headless Chromium, driven by
+// Playwright, against a running landsketch server started with the admin token
+// `$LANDSKETCH_ADMIN_TOKEN`:
 //
-//   node tests/browser/e2e.mjs http://127.0.0.1:8080 [--screenshots docs/ui]
+//   LANDSKETCH_ADMIN_TOKEN=… node tests/browser/e2e.mjs http://127.0.0.1:8080 [--screenshots docs/ui]
 //
-// `cargo test --test browser` starts a server and runs this. Chromium: /usr/bin/chromium or
+// `cargo test --test browser` starts a server and runs this. The page opens in citizen mode;
+// the planner's checks log in first. axe-core checks accessibility in both modes. Chromium: /usr/bin/chromium or
 // $CHROMIUM. Every check asserts real behaviour (frames arrive, pixels change, the server's
 // messages are shown); there are no timed assertions, only generous waits against hangs.
 
@@ -22,6 +24,13 @@ if (!base) {
   console.error('usage: node tests/browser/e2e.mjs <base-url> [--screenshots DIR]');
   process.exit(2);
 }
+const TOKEN = process.env.LANDSKETCH_ADMIN_TOKEN;
+if (!TOKEN) {
+  console.error('LANDSKETCH_ADMIN_TOKEN must name the admin token the server was started with');
+  process.exit(2);
+}
+/** Words of the planner's tools and of the renderer's internals that a citizen never reads. */
+const JARGON = ['hlp', 'tam', 'sam', 'contour', 'albedo', 'gooch', '+proj', 'epsg', 'fps', 'rtt'];
 const shotsAt = args.indexOf('--screenshots');
 const shots = shotsAt >= 0 ? resolve(args[shotsAt + 1]) : null;
 if (shots) mkdirSync(shots, { recursive: true });
@@ -197,6 +206,45 @@ async function artSource(page, kind, index, source) {
   );
 }
 
+/** The serious and critical accessibility violations axe-core finds on the page. */
+async function axeViolations(page) {
+  await page.addScriptTag({ path: join(here, 'node_modules/axe-core/axe.min.js') });
+  const violations = await page.evaluate(async () => (await window.axe.run(document, { resultTypes: ['violations'] })).violations
+    .filter((v) => v.impact === 'serious' || v.impact === 'critical')
+    .map((v) => `${v.id} (${v.impact}): ${v.nodes.slice(0, 3).map((n) => n.target.join(' ')).join(', ')}`));
+  return violations;
+}
+
+/** The jargon words (`JARGON`) in the page's visible text, each with a few words around it. */
+async function jargonIn(page) {
+  const text = (await page.evaluate(() => document.body.innerText)).toLowerCase();
+  return JARGON.flatMap((word) => {
+    const found = [];
+    for (let at = text.indexOf(word); at >= 0; at = text.indexOf(word, at + 1)) found.push(`${word}: …${text.slice(Math.max(0, at - 30), at + 30)}…`);
+    return found;
+  });
+}
+
+/** Logs in as planner with `token` through the login dialog; returns the dialog's status text. */
+async function login(page, token) {
+  await page.locator('#login').click();
+  await page.locator('#login-dialog').waitFor({ state: 'visible' });
+  await page.locator('#login-token').waitFor({ state: 'visible' });
+  await page.locator('#login-token').fill(token);
+  await page.locator('#login-submit').click();
+  await page.waitForFunction(() => document.body.dataset.mode === 'planner' || document.getElementById('login-status').textContent, null, { timeout: WAIT });
+  return page.locator('#login-status').textContent();
+}
+
+/** Controls a finger can hardly hit: visible ones smaller than 44 × 44 CSS pixels. */
+async function smallControls(page) {
+  return page.locator('button, select, input:not([type="hidden"]), [role="tab"], [role="radio"], canvas[role="button"]').evaluateAll((controls) => controls
+    .filter((c) => c.getClientRects().length && getComputedStyle(c).visibility !== 'hidden')
+    .map((c) => [c, c.getBoundingClientRect()])
+    .filter(([c, r]) => (r.height < 44 || r.width < 44) && !(c.type === 'checkbox' && c.closest('label, .check')))
+    .map(([c, r]) => `${c.id || c.outerHTML.slice(0, 60)} ${Math.round(r.width)}×${Math.round(r.height)}`));
+}
+
 async function shot(page, name) {
   if (shots) await page.screenshot({ path: join(shots, `${name}.jpg`), type: 'jpeg', quality: 80 });
 }
@@ -219,33 +267,197 @@ let initial;
 let camera;
 
 try {
-  await check('the page loads and shows frames', async () => {
+  await check('the page loads in citizen mode with a welcome and shows frames', async () => {
     await page.goto(base);
     camera = await nextStill(page, 0);
     initial = camera;
     assert.equal(await page.locator('#connection').getAttribute('data-state'), 'open');
-    assert.match(await page.locator('#scene-name').textContent(), /\S/);
+    assert.equal(await page.locator('body').getAttribute('data-mode'), 'citizen');
+    assert.match(await page.locator('#welcome-title').textContent(), /Boulder/);
+    assert.match(await page.locator('#welcome-plan').textContent(), /woodland/);
+    assert.ok(await page.locator('#hint').isVisible(), 'first-use hints on how to move');
+    await shot(page, 'citizen');
+    await page.locator('#hint-close').click();
+    assert.ok(await page.locator('#hint').isHidden(), 'the hints go once read');
+    assert.equal(await page.evaluate(() => document.activeElement.id), 'viewer', 'the keys walk after "Got it"');
     const p = await pixels(page);
     const viewer = await page.locator('#viewer').evaluate((v) => v.clientWidth);
     assert.ok(Math.abs(p.width - Math.round(viewer * RENDER_SCALE)) <= 1, `frames of ${RENDER_SCALE} × the viewer (${viewer} px), got ${p.width} × ${p.height}`);
     assert.ok(p.dark > 0.005, `ink in the frame: ${(p.dark * 100).toFixed(2)} % dark`);
     assert.ok(p.light > 0.2, `paper in the frame: ${(p.light * 100).toFixed(2)} % light`);
-    await page.waitForFunction(() => /fps/.test(document.getElementById('stats').textContent), null, { timeout: WAIT });
     const link = await page.locator('#link').inputValue();
     assert.match(link, /[?&]x=.*&yaw=/, `the view is in the link: ${link}`);
-    await shot(page, 'viewer');
     assert.deepEqual(await unlabelled(page), [], 'every visible control has a label');
+    assert.deepEqual(await jargonIn(page), [], 'no jargon in citizen mode');
+    assert.deepEqual(await axeViolations(page), [], 'axe-core: no serious or critical violations in citizen mode');
+  });
+
+  await check('a kiosk without login offers nothing that changes what others see', async () => {
+    for (const id of ['#tab-style', '#tab-upload', '#tab-art', '#style-reset', '#upload-submit', '#stats']) {
+      assert.ok(await page.locator(id).isHidden(), `${id} hidden in citizen mode`);
+    }
+    await openPane(page, 'data');
+    assert.equal(await page.locator('button.danger:visible').count(), 0, 'no delete buttons');
+    await openPane(page, 'about');
+  });
+
+  await check('the first-time citizen flow: go to the plan, with and without it, highlight it, share the link', async () => {
+    const looking = await pixels(page);
+    const there = await stillAfter(page, () => page.locator('#go-plan').click());
+    assert.ok(Math.hypot(there.position[0] - camera.position[0], there.position[1] - camera.position[1]) > 50, 'moved to the plan');
+    assert.ok(difference(looking, await pixels(page)) > CHANGED, 'a new view');
+    assert.equal(await page.evaluate(() => document.activeElement.id), 'viewer', 'the keys walk after a button');
+    const withPlan = await pixels(page);
+    await stillAfter(page, () => page.locator('#with-plan').click());
+    assert.equal(await page.locator('#with-plan').getAttribute('aria-pressed'), 'false');
+    assert.match(await page.locator('#legend-planned').textContent(), /hidden/);
+    await linked(page, 'layer_styles', (v) => v === JSON.stringify({ planned: { visible: false } }));
+    const without = await pixels(page);
+    assert.ok(difference(withPlan, without) > CHANGED, 'the plan disappeared');
+    await stillAfter(page, () => page.locator('#with-plan').click());
+    assert.ok(difference(without, await pixels(page)) > CHANGED, 'the plan is back');
+    await stillAfter(page, () => page.locator('#highlight-plan').click());
+    await linked(page, 'layer_styles', (v) => v === JSON.stringify({ planned: { preset: 'photorealism' } }));
+    await shot(page, 'citizen-highlight');
+    const coloured = await page.evaluate(() => {
+      const c = document.getElementById('frame');
+      const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+      let n = 0;
+      for (let i = 0; i < d.length; i += 4) if (Math.max(d[i], d[i + 1], d[i + 2]) - Math.min(d[i], d[i + 1], d[i + 2]) > 40) n += 1;
+      return n / (d.length / 4);
+    });
+    assert.ok(coloured > 0.001, `the plan in colour over the sketch: ${(coloured * 100).toFixed(2)} % coloured pixels`);
+    await stillAfter(page, () => page.locator('#with-plan').click());
+    await page.locator('#copy-link').click();
+    const link = await page.locator('#link').inputValue();
+    const other = watch(await context.newPage());
+    await other.goto(link);
+    const opened = await settledStill(other);
+    for (let i = 0; i < 2; i += 1) assert.ok(Math.abs(opened.position[i] - there.position[i]) < 0.01, 'the same place');
+    assert.equal(await other.locator('#with-plan').getAttribute('aria-pressed'), 'false', 'the link opens the comparison: without the plan');
+    await other.close();
+    await page.bringToFront();
+    await stillAfter(page, () => page.locator('#with-plan').click());
+  });
+
+  await check('a look is chosen from pictures, not parameters', async () => {
+    const looks = page.locator('#looks [role="radio"]');
+    assert.ok((await looks.count()) >= 3, 'three or more looks');
+    await page.waitForFunction(() => [...document.querySelectorAll('#looks img')].every((img) => img.complete && img.naturalWidth > 0), null, { timeout: WAIT });
+    const before = await pixels(page);
+    const photo = page.locator('#looks [data-preset="photorealism"]');
+    await stillAfter(page, () => photo.click());
+    assert.equal(await photo.getAttribute('aria-checked'), 'true');
+    await linked(page, 'preset', (v) => v === 'photorealism');
+    assert.ok(difference(before, await pixels(page)) > CHANGED, 'the look changed the picture');
+    await stillAfter(page, () => page.locator('#looks [data-preset=""]').click());
+    await linked(page, 'preset', (v) => v === null);
+  });
+
+  await check('a tour flies through the start, an overview and the plan with captions', async () => {
+    const before = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
+    await page.locator('#tour').click();
+    await page.waitForFunction(() => /\(\d of 3\)/.test(document.getElementById('tour-caption').textContent), null, { timeout: WAIT });
+    await page.waitForFunction((yaw) => {
+      const camera = JSON.parse(document.getElementById('frame').dataset.camera);
+      return camera.position[2] > 0 && Math.abs(camera.pitch - yaw.pitch) > 1;
+    }, before, { timeout: WAIT });
+    await page.locator('#tour').click();
+    await page.waitForFunction(() => document.getElementById('tour-caption').hidden, null, { timeout: WAIT });
+    assert.equal(await page.locator('#tour').getAttribute('aria-pressed'), 'false');
+    await settledStill(page);
+    await stillAfter(page, () => page.locator('#reset-view').click());
+  });
+
+  await check("orientation: compass, mini map, bird's-eye view with a scale bar", async () => {
+    await page.waitForFunction(() => document.getElementById('minimap-image').naturalWidth > 0, null, { timeout: WAIT });
+    assert.match(await page.locator('#compass').getAttribute('aria-label'), /looks (north|east|south|west)/);
+    await stillAfter(page, () => page.locator('#plan').click());
+    await linked(page, 'mode', (v) => v === 'plan');
+    assert.ok(await page.locator('#scalebar').isVisible(), 'a scale bar in the plan view');
+    assert.match(await page.locator('#scalebar-label').textContent(), /^\d+ k?m$/);
+    const box = await page.locator('#minimap').boundingBox();
+    const moved = await stillAfter(page, () => page.mouse.click(box.x + box.width * 0.25, box.y + box.height * 0.25));
+    assert.ok(moved.position[0] < initial.position[0] - 100, `the map's north-west corner: ${moved.position}`);
+    await stillAfter(page, () => page.locator('#plan').click());
+    await stillAfter(page, () => page.locator('#reset-view').click());
+  });
+
+  await check('the language switch translates the page', async () => {
+    await page.locator('#language').selectOption('de');
+    assert.equal(await page.locator('#go-plan').textContent(), 'Zur Planung');
+    assert.equal(await page.locator('html').getAttribute('lang'), 'de');
+    await page.locator('#language').selectOption('en');
+    assert.equal(await page.locator('#go-plan').textContent(), 'Go to the plan');
+  });
+
+  await check('planner login: a wrong token is refused, the admin token shows the planner tools', async () => {
+    expected.push([step, '/api/auth']);
+    const refused = await login(page, 'not the token');
+    assert.match(refused, /not accepted/, `the refusal: ${refused}`);
+    assert.equal(await page.locator('body').getAttribute('data-mode'), 'citizen');
+    await page.locator('#login-cancel').click();
+    await login(page, TOKEN);
+    assert.equal(await page.locator('body').getAttribute('data-mode'), 'planner');
+    assert.ok(await page.locator('#tab-style').isVisible(), 'the style panel');
+    await page.waitForFunction(() => /fps|idle/.test(document.getElementById('stats').textContent), null, { timeout: WAIT });
+    assert.deepEqual(await axeViolations(page), [], 'axe-core: no serious or critical violations in planner mode');
+    await shot(page, 'planner');
+    camera = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
+  });
+
+  await check('a meeting: the planner presents, a page joined by /?meeting=CODE follows, detaches and rejoins', async () => {
+    await page.locator('#meeting-open').click();
+    await page.waitForFunction(() => document.getElementById('meeting').dataset.role === 'presenter', null, { timeout: WAIT });
+    const code = await page.locator('#meeting').getAttribute('data-code');
+    assert.match(await page.locator('#meeting-title').textContent(), new RegExp(`Meeting ${code}: you present`));
+    await page.waitForFunction(() => document.getElementById('meeting-qr').naturalWidth > 0, null, { timeout: WAIT });
+    const follower = watch(await context.newPage());
+    await follower.goto(`${base}/?meeting=${code}`);
+    await follower.waitForFunction(() => document.getElementById('meeting').dataset.role === 'follower', null, { timeout: WAIT });
+    await page.waitForFunction(() => /^1 following/.test(document.getElementById('meeting-status').textContent), null, { timeout: WAIT });
+    await page.locator('#meeting').scrollIntoViewIfNeeded();
+    await shot(page, 'meeting');
+    // The presenter's page in front: a page behind others gets no animation frames.
+    await page.bringToFront();
+    const turned = await stillAfter(page, async () => {
+      await page.locator('#viewer').focus();
+      await page.keyboard.down('ArrowLeft');
+      await page.waitForTimeout(500);
+      await page.keyboard.up('ArrowLeft');
+    });
+    await follower.waitForFunction((yaw) => Math.abs(JSON.parse(document.getElementById('frame').dataset.camera).yaw - yaw) < 0.01, turned.yaw, { timeout: WAIT });
+    await follower.locator('#meeting-detach').click();
+    await follower.waitForFunction(() => document.getElementById('meeting').dataset.role === 'detached', null, { timeout: WAIT });
+    await follower.locator('#meeting-rejoin').click();
+    await follower.waitForFunction(() => document.getElementById('meeting').dataset.role === 'follower', null, { timeout: WAIT });
+    await page.locator('#meeting-close').click();
+    await follower.waitForFunction(() => /meeting ended/.test(document.getElementById('message').textContent), null, { timeout: WAIT });
+    assert.ok(await follower.locator('#meeting').isHidden(), 'the meeting panel goes');
+    await follower.close();
+    await page.bringToFront();
+    await page.waitForFunction(() => document.getElementById('meeting').hidden, null, { timeout: WAIT });
+    await page.evaluate(() => window.scrollTo(0, 0));
+    camera = await settledStill(page);
   });
 
   await check('dragging changes the view', async () => {
     const before = await pixels(page);
     const box = await page.locator('#viewer').boundingBox();
-    const after = await stillAfter(page, async () => {
+    let after = await stillAfter(page, async () => {
       await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
       await page.mouse.down();
       for (let i = 1; i <= 10; i += 1) await page.mouse.move(box.x + box.width / 2 + i * 15, box.y + box.height / 2 + i * 3);
       await page.mouse.up();
     });
+    if (Math.abs(after.yaw - camera.yaw) <= 5) {
+      // A still of an earlier change came first: the drag's follows.
+      after = await page.waitForFunction((yaw) => {
+        const canvas = document.getElementById('frame');
+        const shown = JSON.parse(canvas.dataset.camera);
+        return canvas.dataset.still === 'true' && Math.abs(shown.yaw - yaw) > 5 && shown;
+      }, camera.yaw, { timeout: WAIT }).then((handle) => handle.jsonValue());
+    }
     assert.ok(Math.abs(after.yaw - camera.yaw) > 5, `yaw turned: ${camera.yaw} → ${after.yaw}`);
     assert.ok(difference(before, await pixels(page)) > CHANGED, 'the picture changed');
     camera = after;
@@ -292,16 +504,54 @@ try {
     await linked(page, 'style', (v) => v === null);
   });
 
-  await check('a preset switch changes the image', async () => {
+  await check('a preset switch changes the image; then the keys drive the view, not the menu', async () => {
     const presets = await page.locator('#preset option').evaluateAll((options) => options.map((o) => o.value).filter(Boolean));
     assert.ok(presets.length > 1, `presets offered: ${presets}`);
     const before = await pixels(page);
     const name = presets.includes('van_gogh') ? 'van_gogh' : presets[0];
-    await stillAfter(page, () => page.locator('#preset').selectOption(name));
+    const chosen = await stillAfter(page, () => page.locator('#preset').selectOption(name));
     assert.ok(difference(before, await pixels(page)) > CHANGED, `preset ${name} changed the picture`);
     await linked(page, 'preset', (v, a) => v === a, name);
     await shot(page, `preset-${name}`);
+    assert.equal(await page.evaluate(() => document.activeElement.id), 'viewer', 'the focus is back on the view');
+    const walked = await stillAfter(page, async () => {
+      await page.keyboard.down('ArrowDown');
+      await page.waitForTimeout(500);
+      await page.keyboard.up('ArrowDown');
+    });
+    assert.equal(await page.locator('#preset').inputValue(), name, '↓ left the preset alone');
+    assert.ok(Math.hypot(walked.position[0] - chosen.position[0], walked.position[1] - chosen.position[1]) > 0.3, '↓ walked back');
     await stillAfter(page, () => page.locator('#preset').selectOption(''));
+  });
+
+  await check('"Reset style" resets the view and every layer; "Visible" is a layer\'s, not the whole view\'s', async () => {
+    assert.ok(await page.locator('#style-visible').isHidden(), 'no "Visible" switch for the whole view');
+    await stillAfter(page, () => page.locator('#style-photorealism').fill('1'));
+    await page.locator('#style-target').selectOption('existing');
+    assert.ok(await page.locator('#style-visible').isVisible(), '"Visible" for a layer');
+    await stillAfter(page, () => page.locator('#preset').selectOption('minimalistic'));
+    await linked(page, 'layer_styles', (v) => v === JSON.stringify({ existing: { preset: 'minimalistic' } }));
+    await linked(page, 'style', (v) => v && JSON.parse(v).photorealism === 1);
+    await stillAfter(page, () => page.locator('#style-reset').click());
+    await linked(page, 'style', (v) => v === null);
+    await linked(page, 'layer_styles', (v) => v === null);
+    await page.locator('#style-target').selectOption('');
+  });
+
+  await check("a refused style's message goes once the value is fixed", async () => {
+    await page.locator('#pane-style details.advanced').evaluate((d) => {
+      d.open = true;
+      for (const inner of d.querySelectorAll('details')) inner.open = true;
+    });
+    const hatch = page.locator('#style-hatch_map').locator('xpath=..').locator('input[type="number"]');
+    await hatch.fill('9');
+    await hatch.dispatchEvent('change');
+    await page.waitForFunction(() => /art map/.test(document.getElementById('message').textContent), null, { timeout: WAIT });
+    await stillAfter(page, async () => {
+      await hatch.fill('0');
+      await hatch.dispatchEvent('change');
+    });
+    await page.waitForFunction(() => document.getElementById('message').textContent === '', null, { timeout: WAIT });
   });
 
   await check('a vegetation layer gets a style of its own', async () => {
@@ -439,26 +689,51 @@ try {
   });
 
   let layerId;
-  await check('uploading a sample raster adds a layer whose legend appears', async () => {
-    for (const { day, path } of SERIES) {
-      const result = await upload(page, { name: 'Test series', kind: 'scalar', time: day, file: path });
-      assert.equal(result.kind, 'ok', result.text);
-    }
+  await check('uploading a series: the legend follows a new step, other pages list the layer within 2 s', async () => {
+    const other = watch(await context.newPage());
+    await other.goto(base);
+    await nextStill(other, 0);
+    await openPane(other, 'data');
+    const first = await upload(page, { name: 'Test series', kind: 'scalar', time: SERIES[0].day, file: SERIES[0].path });
+    assert.equal(first.kind, 'ok', first.text);
+    const uploaded = Date.now();
+    await other.locator('li.layer', { hasText: 'Test series' }).waitFor({ timeout: 2000 });
+    console.log(`  the other page listed the layer after ${Date.now() - uploaded} ms`);
     await openPane(page, 'data');
     const item = page.locator('li.layer', { hasText: 'Test series' });
     await item.waitFor({ timeout: WAIT });
     layerId = await item.getAttribute('data-layer');
-    assert.match(await item.locator('.meta').textContent(), /2 time steps/);
     const legend = item.locator('img.legend');
-    await page.waitForFunction((img) => img.complete && img.naturalWidth > 0, await legend.elementHandle(), { timeout: WAIT });
-    assert.equal(await legend.evaluate((img) => img.naturalWidth), 320);
-    assert.match(await legend.getAttribute('alt'), /Legend of Test series/);
+    const oneStep = await legend.getAttribute('src');
+    const second = await upload(page, { name: 'Test series', kind: 'scalar', time: SERIES[1].day, file: SERIES[1].path });
+    assert.equal(second.kind, 'ok', second.text);
+    await openPane(page, 'data');
+    await page.waitForFunction(() => /2 time steps/.test(document.querySelector('li.layer .summary')?.textContent), null, { timeout: WAIT });
+    const twoSteps = await item.locator('img.legend').getAttribute('src');
+    assert.notEqual(twoSteps, oneStep, 'a new step gives the legend a new URL (not the cached image)');
+    await page.waitForFunction((img) => img.complete && img.naturalWidth > 0, await item.locator('img.legend').elementHandle(), { timeout: WAIT });
+    assert.equal(await item.locator('img.legend').evaluate((img) => img.naturalWidth), 320);
+    assert.match(await item.locator('img.legend').getAttribute('alt'), /Legend of Test series/);
+    await other.waitForFunction(() => /2 time steps/.test(document.querySelector('li.layer .summary')?.textContent), null, { timeout: 2000 });
+    await other.close();
+    await page.bringToFront();
+  });
+
+  await check('a layer covering part of the scene says so and can be gone to', async () => {
+    const item = page.locator(`li.layer[data-layer="${layerId}"]`);
+    assert.match(await item.locator('.coverage').textContent(), /Covers \d+ % of the scene/);
+    const there = await stillAfter(page, () => item.locator('button.goto').click());
+    await linked(page, 'mode', (v) => v === 'plan');
+    const extent = await page.evaluate(async (id) => (await (await fetch(`/api/layers/${id}`)).json()).scene_extent, layerId);
+    assert.ok(there.position[0] > extent[0] && there.position[0] < extent[2], `centred on the layer: ${there.position} in ${extent}`);
+    await stillAfter(page, () => page.locator('#plan').click());
   });
 
   await check('mapping a layer shows it in the frame, the time slider changes the frame', async () => {
     // A link into the layer's part of the scene (the west), looking down at the ground.
     await page.goto(`${base}/?x=-800&y=0&eye_height=1.7&yaw=90&pitch=-40&fov=60`);
-    const opened = await nextStill(page, 0);
+    await page.waitForFunction(() => document.body.dataset.mode === 'planner', null, { timeout: WAIT });
+    const opened = await settledStill(page);
     assert.ok(Math.abs(opened.position[0] + 800) < 0.01 && Math.abs(opened.yaw - 90) < 0.01, `the link's view: ${JSON.stringify(opened)}`);
     await openPane(page, 'data');
     const target = page.locator(`#map-${layerId}-target`);
@@ -485,11 +760,14 @@ try {
     // link and the legend, a changed picture.
     const ink = page.locator(`#map-${layerId}-color`);
     assert.ok(await ink.isHidden(), 'no ink picker for the color target');
+    // The frames of the last played steps first.
+    await settledStill(page);
     const coloured = await pixels(page);
     await stillAfter(page, () => target.selectOption('hatch_color'));
     assert.ok(await ink.isVisible(), 'an ink picker for hatch_color');
     assert.ok(await page.locator(`#map-${layerId}-colormap`).isHidden(), 'no colour map for hatch_color');
-    assert.ok(difference(coloured, await pixels(page)) > CHANGED, 'the hatch colour changed the picture');
+    const hatched = await pixels(page);
+    assert.ok(difference(coloured, hatched) > CHANGED, `the hatch colour changed the picture (${difference(coloured, hatched).toFixed(2)}; ${await page.locator('#message').textContent()}; ${page.url()})`);
     await linked(page, 'mappings', (v) => v && JSON.parse(v)[0].target === 'hatch_color' && JSON.parse(v)[0].color.length === 3);
     const legend = await page.locator(`li.layer[data-layer="${layerId}"] img.legend`).getAttribute('src');
     assert.match(legend, /target=hatch_color&color=0\.835%2C0\.369%2C0\b/, 'the legend ramps to the default ink');
@@ -506,6 +784,8 @@ try {
     const other = watch(await context.newPage());
     await other.goto(link);
     const opened = await settledStill(other);
+    assert.equal(await other.locator('#tab-data').getAttribute('aria-selected'), 'true', 'a link with a data layer opens on the data maps');
+    assert.ok(await other.locator('li.layer img.legend').isVisible(), 'with the legend in sight');
     for (let i = 0; i < 3; i += 1) {
       assert.ok(Math.abs(opened.position[i] - shown.position[i]) < 0.01, `position ${i}: ${shown.position} vs ${opened.position}`);
     }
@@ -527,6 +807,7 @@ try {
     const session = await pixels(other);
     assert.ok(difference(session, rest) < 4, `the session and GET /api/render show the same picture (${difference(session, rest).toFixed(2)})`);
     await other.close();
+    await page.bringToFront();
   });
 
   await check('the screenshot is a full-quality PNG of the same view', async () => {
@@ -537,6 +818,30 @@ try {
     const width = bytes.readUInt32BE(16);
     const viewer = await page.locator('#viewer').boundingBox();
     assert.ok(Math.abs(width - Math.round(viewer.width)) <= 2, `full viewer width ${viewer.width}, got ${width}`);
+    // Caption, north arrow, legend and credits over the render: the saved picture differs from
+    // the plain render of the same view in its corners.
+    const corners = await page.evaluate(async ([png, query]) => {
+      const load = async (blob) => {
+        const image = await createImageBitmap(blob);
+        const c = Object.assign(document.createElement('canvas'), { width: image.width, height: image.height });
+        c.getContext('2d').drawImage(image, 0, 0);
+        return c.getContext('2d');
+      };
+      const saved = await load(new Blob([new Uint8Array(png)], { type: 'image/png' }));
+      const w = saved.canvas.width;
+      const h = saved.canvas.height;
+      const plain = await load(await (await fetch(`/api/render?${query}&width=${w}&height=${h}&format=png`)).blob());
+      const diff = (x, y, s) => {
+        const a = saved.getImageData(x, y, s, s).data;
+        const b = plain.getImageData(x, y, s, s).data;
+        let d = 0;
+        for (let i = 0; i < a.length; i += 1) d += Math.abs(a[i] - b[i]);
+        return d / a.length;
+      };
+      const s = Math.round(w / 30);
+      return { caption: diff(s, s, s), north: diff(w - 2 * s, s, s), credit: diff(w - 3 * s, h - s, s) };
+    }, [[...bytes], new URL(page.url()).search.slice(1)]);
+    for (const [part, d] of Object.entries(corners)) assert.ok(d > 2, `the ${part} is drawn over the picture (${d.toFixed(1)})`);
   });
 
   await check('deleting a layer asks first', async () => {
@@ -554,6 +859,7 @@ try {
   });
 
   await check('plan view', async () => {
+    await settledStill(page);
     const before = await pixels(page);
     await stillAfter(page, () => page.locator('#plan').click());
     await linked(page, 'mode', (v) => v === 'plan');
@@ -592,6 +898,7 @@ try {
     const again = JSON.parse(await other.locator('#frame').getAttribute('data-camera'));
     assert.ok(Math.abs(again.yaw - turned.yaw) < 0.01, `the view survived: yaw ${turned.yaw} → ${again.yaw}`);
     await other.close();
+    await page.bringToFront();
   });
 
   await check('a link the server refuses falls back to the default view with the reason', async () => {
@@ -604,18 +911,62 @@ try {
     assert.deepEqual(shown.position.slice(0, 2), initial.position.slice(0, 2), 'the default view');
     await linked(other, 'x', (v) => v !== '5000');
     await other.close();
+    await page.bringToFront();
   });
 
-  await check('a phone-sized viewport', async () => {
-    const phone = watch(await context.newPage());
-    await phone.setViewportSize({ width: 390, height: 844 });
-    await phone.goto(base);
-    await nextStill(phone, 0);
-    const overflow = await phone.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
-    assert.ok(overflow <= 0, `no sideways scrolling (${overflow} px too wide)`);
-    for (const id of ['#fly', '#screenshot', '#copy-link', '#tab-style']) assert.ok(await phone.locator(id).isVisible(), `${id} visible`);
-    if (shots) await phone.screenshot({ path: join(shots, 'phone.jpg'), type: 'jpeg', quality: 80 });
-    await phone.close();
+  await check('logout hides the planner controls', async () => {
+    await page.locator('#logout').click();
+    assert.equal(await page.locator('body').getAttribute('data-mode'), 'citizen');
+    for (const id of ['#tab-style', '#tab-upload', '#tab-art']) assert.ok(await page.locator(id).isHidden(), `${id} hidden`);
+    assert.deepEqual(await jargonIn(page), [], 'no jargon after logout');
+  });
+
+  await check('a phone: touch gestures, pinch zoom, 44 px controls, no jargon, accessible', async () => {
+    const browser = await chromium.launch({ executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium', args: FLAGS });
+    try {
+      const mobile = await browser.newContext({ viewport: { width: 390, height: 844 }, hasTouch: true, isMobile: true });
+      await mobile.addInitScript((scale) => localStorage.setItem('landsketch.renderScale', scale), String(RENDER_SCALE));
+      const phone = watch(await mobile.newPage());
+      await phone.goto(base);
+      const opened = await nextStill(phone, 0);
+      const overflow = await phone.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+      assert.ok(overflow <= 0, `no sideways scrolling (${overflow} px too wide)`);
+      assert.match(await phone.locator('#hint-text').textContent(), /pinch/, 'touch hints on first use');
+      assert.ok(await phone.locator('#nav-help').isVisible(), 'the navigation help is visible on touch');
+      for (const id of ['#fly', '#plan', '#go-plan', '#with-plan', '#screenshot', '#copy-link', '#tab-about']) assert.ok(await phone.locator(id).isVisible(), `${id} visible`);
+      assert.deepEqual(await smallControls(phone), [], 'every control at least 44 × 44 px');
+      assert.deepEqual(await jargonIn(phone), [], 'no jargon on the phone');
+      if (shots) await phone.screenshot({ path: join(shots, 'phone.jpg'), type: 'jpeg', quality: 80 });
+      // Pinch: two fingers spread apart narrow the field of view.
+      const box = await phone.locator('#viewer').boundingBox();
+      const cdp = await mobile.newCDPSession(phone);
+      const cx = box.x + box.width / 2;
+      const cy = box.y + box.height / 2;
+      const touch = (type, spread) => cdp.send('Input.dispatchTouchEvent', {
+        type,
+        touchPoints: type === 'touchEnd' ? [] : [{ x: cx - spread, y: cy, id: 1 }, { x: cx + spread, y: cy, id: 2 }],
+      });
+      const zoomed = await stillAfter(phone, async () => {
+        await touch('touchStart', 20);
+        for (let spread = 30; spread <= 120; spread += 10) await touch('touchMove', spread);
+        await touch('touchEnd', 0);
+      });
+      assert.ok(zoomed.fov < opened.fov - 5, `pinching zoomed in: fov ${opened.fov} → ${zoomed.fov}`);
+      // A swipe on the page below the view scrolls the page, not the camera.
+      const below = (await phone.locator('#panel').boundingBox()).y + 20;
+      const swipe = (type, y) => cdp.send('Input.dispatchTouchEvent', { type, touchPoints: type === 'touchEnd' ? [] : [{ x: cx, y, id: 3 }] });
+      await swipe('touchStart', Math.min(below, 820));
+      for (let y = Math.min(below, 820) - 30; y > 300; y -= 30) await swipe('touchMove', y);
+      await swipe('touchEnd', 0);
+      await phone.waitForTimeout(600);
+      assert.ok(await phone.evaluate(() => window.scrollY) > 0, 'the page scrolled');
+      const yaw = Number(new URL(phone.url()).searchParams.get('yaw'));
+      assert.ok(Math.abs(yaw - zoomed.yaw) < 0.01, `the camera kept its heading: ${zoomed.yaw} → ${yaw}`);
+
+      assert.deepEqual(await axeViolations(phone), [], 'axe-core on the phone');
+    } finally {
+      await browser.close();
+    }
   });
 
   await check('no console errors', async () => {

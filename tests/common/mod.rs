@@ -62,6 +62,7 @@ pub fn trees_on_a_plain(positions: &[[f32; 2]]) -> Scene {
         layers: vec![VegetationLayer { name: "test".into(), plants }],
         sun: Sun { azimuth: 0.0, elevation: 90.0 },
         default_camera: Camera::perspective([0.0, -30.0, 105.0], 0.0, 0.0, 60.0),
+        about: Default::default(),
     }
 }
 

@@ -86,7 +86,8 @@ describe('backoffDelay', () => {
 });
 
 test('statsText shows the figures that are known', () => {
-  assert.equal(statsText({ fps: 0, latencyMs: null, rttMs: null, renderMs: null, frames: 0 }), '0.0 fps');
+  assert.equal(statsText({ fps: 0, latencyMs: null, rttMs: null, renderMs: null, frames: 0 }), 'idle');
+  assert.equal(statsText({ fps: 0, latencyMs: null, rttMs: 3, renderMs: 40, frames: 1 }), 'idle · rtt 3 ms · render 40 ms');
   assert.equal(statsText({ fps: 12.04, latencyMs: 84.6, rttMs: 2.4, renderMs: 40, frames: 9 }), '12.0 fps · latency 85 ms · rtt 2 ms · render 40 ms');
   assert.equal(statsText({ fps: 9.96, latencyMs: null, rttMs: 0, renderMs: 0 }), '10.0 fps · rtt 0 ms · render 0 ms');
 });

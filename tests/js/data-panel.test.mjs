@@ -3,7 +3,7 @@
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
-import { formatTime, hexOf, legendQuery, positionOf, rgbOf, timeAt } from '../../web/data-panel.js';
+import { coverage, formatTime, hexOf, legendQuery, legendUrl, positionOf, rgbOf, timeAt } from '../../web/data-panel.js';
 
 test('colours: #rrggbb ↔ sRGB 0…1 with three decimals', () => {
   assert.deepEqual(rgbOf('#ff8000'), [1, 0.502, 0]);
@@ -46,4 +46,20 @@ test('legendQuery carries the colour map or hatch colour, range and reverse', ()
   assert.equal(legendQuery({ target: 'color', colormap: 'magma', range: [-1.5, 10], reverse: true }), 'colormap=magma&range=-1.5%2C10&reverse=true');
   assert.equal(legendQuery({ target: 'hatch_color', color: [0.8, 0.4, 0], colormap: 'ignored' }), 'target=hatch_color&color=0.8%2C0.4%2C0');
   assert.equal(legendQuery({ target: 'hatch_tone', reverse: false }), '');
+});
+
+test('the legend URL changes with a new time step or range (no stale cached image)', () => {
+  const layer = { id: 'a b', steps: [{ time: '2024-06-01T00:00:00Z' }], min: 0, max: 5 };
+  const one = legendUrl(layer, { target: 'color', colormap: 'viridis' });
+  assert.match(one, /^\/api\/layers\/a%20b\/legend\.png\?colormap=viridis&v=/);
+  const two = legendUrl({ ...layer, steps: [...layer.steps, { time: '2024-06-11T00:00:00Z' }], max: 7 }, { target: 'color', colormap: 'viridis' });
+  assert.notEqual(one, two);
+  assert.match(legendUrl(layer, undefined), /legend\.png\?v=/);
+});
+
+test('coverage: the share of the scene a layer covers and the covered part', () => {
+  const scene = { min: [-100, -100], max: [100, 100] };
+  assert.deepEqual(coverage(scene, [-100, -100, 0, 100]), { share: 0.5, part: { min: [-100, -100], max: [0, 100] } });
+  assert.deepEqual(coverage(scene, [-500, -500, 500, 500]), { share: 1, part: scene });
+  assert.deepEqual(coverage(scene, [200, 200, 300, 300]), { share: 0, part: null });
 });

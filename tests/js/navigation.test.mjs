@@ -3,7 +3,7 @@
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
-import { keepInside, moveView, turnView } from '../../web/navigation.js';
+import { keepInside, moveView, pinch, turnView } from '../../web/navigation.js';
 
 const near = (actual, expected, message) => {
   for (const [key, value] of Object.entries(expected)) {
@@ -67,4 +67,19 @@ test('keepInside holds the camera a metre inside the scene', () => {
   const inside = walking({ x: 3, y: 4 });
   keepInside(inside, extent);
   near(inside, { x: 3, y: 4 });
+});
+
+test('a pinch zooms: spreading narrows the field of view or the plan view, within bounds', () => {
+  const view = { fov: 60, plan: null };
+  pinch(view, 2);
+  assert.equal(view.fov, 30);
+  pinch(view, 100);
+  assert.equal(view.fov, 10, 'no narrower than 10°');
+  pinch(view, 0.01);
+  assert.equal(view.fov, 100, 'no wider than 100°');
+  const plan = { fov: 60, plan: { width: 1000 } };
+  pinch(plan, 4);
+  assert.deepEqual([plan.plan.width, plan.fov], [250, 60]);
+  pinch(plan, Number.NaN);
+  assert.equal(plan.plan.width, 250, 'a bad ratio changes nothing');
 });

@@ -149,6 +149,26 @@ impl FromRequestParts<AppState> for Admin {
     }
 }
 
+/// `GET /api/auth`: this client may change shared state (upload, delete, edit art maps).
+#[derive(Debug, serde::Serialize, utoipa::ToSchema)]
+pub struct AuthInfo {
+    /// Whether the server has an admin token (else it admits loopback clients without one).
+    pub token_required: bool,
+}
+
+/// Checks a planner's login: 200 when the request would pass every write endpoint's guard
+/// (the admin token, or a loopback client on a server without one), 401/403 as they would
+/// answer. The browser UI asks this before it shows the planner's controls.
+#[utoipa::path(get, path = "/api/auth", tag = "operations",
+    security(("bearer" = []), ()),
+    responses(
+        (status = 200, description = "Writes are admitted", body = AuthInfo),
+        (status = 401, description = "Admin token missing or wrong", body = super::error::ErrorBody),
+        (status = 403, description = "Refused as a write would be: a client not on loopback, a foreign Host or Origin", body = super::error::ErrorBody)))]
+pub async fn check(_admin: Admin, axum::extract::State(state): axum::extract::State<AppState>) -> axum::Json<AuthInfo> {
+    axum::Json(AuthInfo { token_required: state.config().admin_token.is_some() })
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::ServerConfig;

@@ -10,11 +10,12 @@ use super::error::{ApiError, ErrorBody};
 use super::events::{Change, LiveEvent};
 use super::ratelimit::{RateLimiter, take};
 use super::routes::{parse_body, pool_error};
-use super::view::{Source, ViewParams};
+use super::view::{Source, ViewParams, ViewRequest};
 use crate::echo::echo;
 use crate::fields::{format_time, parse_time};
 use crate::render::gbuffer::BACKGROUND_DEPTH;
 use crate::render::layer_code::LayerCode;
+use crate::render::marks::Pin;
 use crate::scene::Scene;
 use crate::scene::participation::{Moderation, ParticipationConfig, Viewpoint};
 use crate::store::participation::{
@@ -464,6 +465,34 @@ pub async fn list(State(state): State<AppState>, mut parts: Parts) -> Result<Res
     }
 }
 
+/// The visible comments as the pins a view draws: at their points, with their numbers and
+/// their categories' indices in the scene's list (none or an unlisted one: the grey of `other`).
+pub async fn comment_pins(state: &AppState, ready: &super::Ready) -> Result<Vec<Pin>, ApiError> {
+    let comments = state.participation().comments(CommentFilter::public()).await.map_err(store_error)?;
+    let categories = &ready.participation.config.categories;
+    Ok(comments
+        .iter()
+        .map(|c| Pin {
+            position: glam::DVec3::from_array(c.position).as_vec3(),
+            number: u32::try_from(c.number).unwrap_or(u32::MAX),
+            category: c
+                .category
+                .as_ref()
+                .and_then(|name| categories.iter().position(|k| k == name))
+                .and_then(|i| u8::try_from(i).ok())
+                .unwrap_or(u8::MAX),
+        })
+        .collect())
+}
+
+/// `view` with its comment pins filled in when it asks for them (`comments`).
+pub async fn with_pins(state: &AppState, ready: &super::Ready, mut view: ViewRequest) -> Result<ViewRequest, ApiError> {
+    if view.comments.is_some() {
+        view.comments = Some(comment_pins(state, ready).await?);
+    }
+    Ok(view)
+}
+
 /// One comment; a comment that is not visible only to the admin (404 otherwise).
 #[utoipa::path(get, path = "/api/comments/{id}", tag = "participation",
     params(("id" = i64, Path, description = "Comment id")),
@@ -763,6 +792,7 @@ mod tests {
             layers: vec![crate::scene::VegetationLayer { name: "planned".into(), plants: Vec::new() }],
             sun: crate::scene::Sun { azimuth: 0.0, elevation: 45.0 },
             default_camera: crate::scene::camera::Camera::perspective([0.0; 3], 0.0, 0.0, 60.0),
+            about: Default::default(),
         };
         use crate::render::gbuffer::object_id;
         assert_eq!(hit_of(&scene, 0), None);

@@ -46,6 +46,9 @@ pub struct LegendQuery {
     /// Ink of a `hatch_color` legend as sRGB `r,g,b`, each 0…1; default the first slot's
     /// (vermillion).
     pub color: Option<String>,
+    /// Ignored: a version the browser adds (the layer's steps and range) so that a layer with a
+    /// new time step gets a new legend URL instead of the image cached for the old one.
+    pub v: Option<String>,
 }
 
 impl LegendQuery {

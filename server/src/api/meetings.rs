@@ -654,6 +654,8 @@ mod tests {
             style: crate::render::Style::default(),
             layer_styles: Default::default(),
             data: Default::default(),
+            compare: None,
+            comments: None,
         }
     }
 

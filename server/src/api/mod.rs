@@ -239,6 +239,7 @@ pub fn router(state: AppState) -> Result<Router, ServerError> {
         .route("/api/scene", get(routes::scene))
         .route("/api/render", limited(get(routes::render_get).post(routes::render_post), config.body_limit))
         .route("/api/styles/resolve", limited(post(routes::resolve_styles), config.body_limit))
+        .route("/api/auth", get(auth::check))
         .route("/api/cache/clear", limited(post(routes::cache_clear), config.body_limit))
         .route("/api/layers", limited(get(layers::list).post(layers::upload), config.max_upload))
         .route("/api/layers/{id}", get(layers::get).delete(layers::delete))

@@ -1,6 +1,6 @@
 //! The OpenAPI 3 document of the server (`GET /api/openapi.json`).
 
-use super::{artmaps, comments, error, events, layers, meetings, metrics, routes, view, viewpoints, ws};
+use super::{artmaps, auth, comments, error, events, layers, meetings, metrics, routes, view, viewpoints, ws};
 use axum::Json;
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
 use utoipa::{Modify, OpenApi};
@@ -19,6 +19,7 @@ use utoipa::{Modify, OpenApi};
         routes::render_post,
         routes::resolve_styles,
         routes::cache_clear,
+        auth::check,
         layers::upload,
         layers::list,
         layers::get,

@@ -410,6 +410,7 @@ fn work(shared: &Shared, renderer: &mut Renderer, store: &Store, runtime: &Handl
                 Some(compare) => request.compare(compare),
                 None => request,
             };
+            let request = request.pins(view.comments.as_deref().unwrap_or_default());
             let request = match session {
                 Some(id) => request.history(views.entry(id).or_insert_with(|| renderer.new_view_state())),
                 None => request,

@@ -11,7 +11,9 @@ use crate::render::presets::PRESETS;
 use crate::render::style::{FieldSchema, PartialStyle};
 use crate::render::view_style::{ResolvedStyles, ViewStyle};
 use crate::render::{RenderError, Style};
+use crate::scene::VegetationLayer;
 use crate::scene::camera::Camera;
+use crate::scene::config::AboutConfig;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
@@ -76,6 +78,21 @@ pub struct LayerInfo {
     pub name: String,
     /// Number of plants.
     pub plants: usize,
+    /// The area the plants stand on (their bounding box); `null` for an empty layer.
+    pub extent: Option<Extent>,
+}
+
+impl From<&VegetationLayer> for LayerInfo {
+    fn from(layer: &VegetationLayer) -> Self {
+        let extent = layer.plants.iter().fold(None, |box_: Option<Extent>, plant| {
+            let [x, y] = [f64::from(plant.position[0]), f64::from(plant.position[1])];
+            Some(match box_ {
+                None => Extent { min: [x, y], max: [x, y] },
+                Some(e) => Extent { min: [e.min[0].min(x), e.min[1].min(y)], max: [e.max[0].max(x), e.max[1].max(y)] },
+            })
+        });
+        LayerInfo { name: layer.name.clone(), plants: layer.plants.len(), extent }
+    }
 }
 
 /// The sun's direction.
@@ -92,6 +109,8 @@ pub struct SunInfo {
 pub struct SceneInfo {
     /// Scene name.
     pub name: String,
+    /// The scene file's `[about]`: welcome title, description, plan summary and the plan's layer.
+    pub about: AboutConfig,
     /// Identifier of the scene and renderer (part of every ETag).
     pub id: String,
     /// The DEM's coordinate reference system.
@@ -178,7 +197,8 @@ pub async fn scene(State(state): State<AppState>) -> Result<Json<SceneInfo>, Api
         id: ready.scene_id.clone(),
         crs: scene.terrain.dem.crs.to_string(),
         extent: Extent { min, max },
-        layers: scene.layers.iter().map(|l| LayerInfo { name: l.name.clone(), plants: l.plants.len() }).collect(),
+        about: scene.about.clone(),
+        layers: scene.layers.iter().map(LayerInfo::from).collect(),
         species: scene.species.iter().map(|s| s.name.clone()).collect(),
         default_camera: CameraInfo::from(&scene.default_camera),
         sun: SunInfo { azimuth: scene.sun.azimuth, elevation: scene.sun.elevation },
@@ -213,6 +233,7 @@ pub async fn render_get(
     let ready = state.ready().ok_or(ApiError::NotReady)?;
     let params = ViewParams::from_query(query.as_deref().unwrap_or_default())?;
     let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Query)?;
+    let view = super::comments::with_pins(&state, ready, view).await?;
     render_view(ready, view, &headers).await
 }
 
@@ -234,6 +255,7 @@ pub async fn render_post(
     let ready = state.ready().ok_or(ApiError::NotReady)?;
     let params: ViewParams = parse_body(body)?;
     let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Body)?;
+    let view = super::comments::with_pins(&state, ready, view).await?;
     render_view(ready, view, &headers).await
 }
 

@@ -7,6 +7,7 @@
 use super::error::ApiError;
 use crate::fields::Mapping;
 use crate::render::compare::Compare;
+use crate::render::marks::Pin;
 use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
 use crate::render::view_style::ViewStyle;
 use crate::render::{RenderError, Style};
@@ -75,6 +76,9 @@ pub struct ViewParams {
     /// with it (the split 0…1 of the width from the left).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub compare: Option<Compare>,
+    /// Draws the visible comments as numbered pins in the view (default false).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub comments: Option<bool>,
 }
 
 /// The query parameters of `GET /api/render`: [`ViewParams`] flattened (`x`, `y`, `z` for
@@ -150,6 +154,9 @@ pub struct RenderQuery {
     /// right of it with it (left out: without the layer everywhere).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub split: Option<f32>,
+    /// `true`: the visible comments drawn as numbered pins.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub comments: Option<bool>,
 }
 
 /// Limits a server puts on views.
@@ -226,6 +233,7 @@ impl ViewParams {
             mappings,
             time: q.time,
             compare,
+            comments: q.comments,
         })
     }
 
@@ -257,6 +265,7 @@ impl ViewParams {
             time: self.time.clone(),
             compare_layer: self.compare.as_ref().map(|c| c.layer.clone()),
             split: self.compare.as_ref().and_then(|c| c.split),
+            comments: self.comments.filter(|&on| on),
         };
         serde_urlencoded::to_string(&query).expect("flat query parameters always URL-encode")
     }
@@ -296,6 +305,7 @@ impl ViewParams {
             layer_styles: styles.layers,
             data,
             compare: self.compare.clone(),
+            comments: self.comments.unwrap_or(false).then(Vec::new),
         })
     }
 
@@ -394,6 +404,11 @@ pub struct ViewRequest {
     /// Before / after (absent from the JSON, so the ETag, when there is none).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub compare: Option<Compare>,
+    /// The comment pins drawn in the view when it asks for them (`comments`), filled in from
+    /// the participation store by [`super::comments::with_pins`]; part of the ETag, so a new
+    /// or hidden comment changes it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub comments: Option<Vec<Pin>>,
 }
 
 impl ViewRequest {
@@ -437,6 +452,7 @@ impl ViewRequest {
             mappings: Some(self.data.mappings.clone()).filter(|m| !m.is_empty()),
             time: self.data.time.clone(),
             compare: self.compare.clone(),
+            comments: self.comments.is_some().then_some(true),
         }
     }
 

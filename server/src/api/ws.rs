@@ -29,6 +29,7 @@ use super::{AppState, Ready};
 use crate::fields::Mapping;
 use crate::render::Style;
 use crate::render::compare::Compare;
+use crate::render::marks::Pin;
 use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
 use crate::render::view_style::ViewStyle;
 use crate::scene::camera::Camera;
@@ -171,6 +172,12 @@ pub enum ClientMessage {
         /// The split position, 0…1 of the image width from the left.
         #[serde(default)]
         split: Option<f32>,
+    },
+    /// Shows (`show: true`) or hides the visible comments as numbered pins in the view; the
+    /// pins follow new, hidden and removed comments.
+    Comments {
+        /// Whether to draw the pins.
+        show: bool,
     },
     /// Asks for a `pong` with the same `id`.
     Ping {
@@ -457,6 +464,10 @@ struct View {
     quality: u8,
     data: DataRequest,
     compare: Option<Compare>,
+    /// The comment pins when the session shows comments.
+    comments: Option<Vec<Pin>>,
+    /// The pins are to be read again from the store (comments shown, or changed).
+    pins_stale: bool,
 }
 
 struct InFlight {
@@ -531,6 +542,8 @@ impl<'a> Session<'a> {
                 quality: initial.quality.unwrap_or(DEFAULT_JPEG_QUALITY),
                 data: initial.data,
                 compare: initial.compare,
+                pins_stale: initial.comments.is_some(),
+                comments: initial.comments,
             },
             seq: 0,
             frame_id: 0,
@@ -568,6 +581,7 @@ impl<'a> Session<'a> {
         {
             return self.ended(failed);
         }
+        self.refresh_pins().await;
         self.schedule(Instant::now());
         loop {
             let idle_at = self.last_message + config.idle_timeout();
@@ -624,9 +638,13 @@ impl<'a> Session<'a> {
                     let (tams, sams) = self.ready.art.counts();
                     Some(ServerMessage::ArtMaps { tams, sams })
                 }
-                Event::Live(Ok(event)) => event.public().map(ServerMessage::Changed),
+                Event::Live(Ok(event)) => {
+                    self.view.pins_stale |= self.view.comments.is_some() && matches!(event, LiveEvent::Comment { .. });
+                    event.public().map(ServerMessage::Changed)
+                }
                 Event::Live(Err(missed)) => {
                     tracing::debug!(session = self.id, missed, "session fell behind the live events");
+                    self.view.pins_stale |= self.view.comments.is_some();
                     for reload in super::events::reload_all() {
                         if let Err(failed) = socket.send_json(&ServerMessage::Changed(reload)).await {
                             return self.ended(failed);
@@ -650,6 +668,7 @@ impl<'a> Session<'a> {
                     return self.ended(failed);
                 }
             }
+            self.refresh_pins().await;
             self.schedule(now);
             if let Some(wake) = self.tour.as_ref().and_then(|t| t.wake) {
                 self.wake_at = Some(self.wake_at.map_or(wake, |w| w.min(wake)));
@@ -739,6 +758,11 @@ impl<'a> Session<'a> {
                     split: compare.and_then(|c| c.split),
                 });
             }),
+            ClientMessage::Comments { show } => {
+                self.view.comments = show.then(|| self.view.comments.take().unwrap_or_default());
+                self.view.pins_stale = show;
+                Ok(())
+            }
             ClientMessage::Size { width, height } => self.set_size(width, height),
             ClientMessage::Quality { format, quality } => self.set_quality(format.as_deref(), quality),
         };
@@ -751,6 +775,18 @@ impl<'a> Session<'a> {
                 answer
             }
             Err(error) => Some(self.reject(error)),
+        }
+    }
+
+    /// Reads the comment pins again when they are stale; a store failure keeps the old ones
+    /// (and is logged), so the view goes on.
+    async fn refresh_pins(&mut self) {
+        if !std::mem::take(&mut self.view.pins_stale) || self.view.comments.is_none() {
+            return;
+        }
+        match super::comments::comment_pins(self.state, self.ready).await {
+            Ok(pins) => self.view.comments = Some(pins),
+            Err(error) => tracing::warn!(session = self.id, %error, "cannot read the comments for the pins"),
         }
     }
 
@@ -866,6 +902,7 @@ impl<'a> Session<'a> {
                 layer_styles: v.styles.layers.clone(),
                 data: v.data.clone(),
                 compare: v.compare.clone(),
+                comments: v.comments.clone(),
             },
             kind,
         )

@@ -38,6 +38,14 @@ pub struct Pin {
     pub category: u8,
 }
 
+/// A pin in a view's JSON (and so its ETag): `[x, y, z, number, category]`.
+impl serde::Serialize for Pin {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let [x, y, z] = self.position.to_array();
+        (x, y, z, self.number, self.category).serialize(serializer)
+    }
+}
+
 gpu_block! {
     /// One pin as the marks pass reads it.
     pub struct PinMark {

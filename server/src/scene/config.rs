@@ -33,6 +33,26 @@ pub struct SceneConfig {
     /// `[[viewpoints]]`: named views for citizens and tours (the server reads them).
     #[serde(default)]
     pub viewpoints: Vec<super::participation::Viewpoint>,
+    /// `[about]`: the place and the plan in plain words, for the browser's welcome.
+    #[serde(default)]
+    pub about: AboutConfig,
+}
+
+/// `[about]`: what the public reads first (the browser UI's welcome): the place, the plan and
+/// the vegetation layer that holds the plan (shown or hidden by "with / without the plan").
+#[derive(Debug, Clone, Default, Deserialize, serde::Serialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AboutConfig {
+    /// Title of the welcome; the scene name when absent.
+    pub title: Option<String>,
+    /// What the place is, in a sentence or two.
+    pub description: Option<String>,
+    /// What the plan changes, in a sentence or two.
+    pub plan_summary: Option<String>,
+    /// The vegetation layer holding the planned plants (one of `[[layers]]`).
+    pub plan_layer: Option<String>,
+    /// Credits of the data, printed on saved pictures (e.g. "terrain: NASA SRTM").
+    pub attribution: Option<String>,
 }
 
 impl SceneConfig {

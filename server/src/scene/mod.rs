@@ -89,6 +89,8 @@ pub struct Scene {
     pub layers: Vec<VegetationLayer>,
     pub sun: Sun,
     pub default_camera: Camera,
+    /// The scene file's `[about]` (welcome text and the plan's layer).
+    pub about: config::AboutConfig,
 }
 
 impl Scene {
@@ -223,8 +225,17 @@ impl Scene {
                 "camera: pitch must be within -90..=90 and fov within 1..=170 degrees".into(),
             ));
         }
+        if let Some(plan) = &config.about.plan_layer
+            && !layers.iter().any(|l| &l.name == plan)
+        {
+            return Err(SceneError::Invalid(format!(
+                "about.plan_layer = {plan:?} names no layer; the layers are {:?}",
+                layers.iter().map(|l| l.name.as_str()).collect::<Vec<_>>()
+            )));
+        }
         Ok(Scene {
             name: config.name.clone(),
+            about: config.about.clone(),
             terrain,
             species,
             layers,
