@@ -13,8 +13,11 @@ use landsketch::scene::gltf_loader::load_gltf;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-/// The targets by name, as `cargo fuzz run <name>` and `fuzz/regressions/<name>/` call them.
-pub const TARGETS: [(&str, fn(&[u8])); 6] = [
+/// A fuzz target: its name (`cargo fuzz run <name>`, `fuzz/regressions/<name>/`) and entry point.
+pub type Target = (&'static str, fn(&[u8]));
+
+/// Every target.
+pub const TARGETS: [Target; 6] = [
     ("upload", upload),
     ("art_map", art_map),
     ("scene_file", scene_file),

@@ -49,7 +49,7 @@ fn every_fuzz_target_survives_its_seeds_and_found_inputs() {
         let seeds = seeds(target);
         assert!(!seeds.is_empty(), "the target {target} has seeds");
         for path in seeds.iter().chain(&files(&Path::new("fuzz/regressions").join(target))) {
-            let input = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let input = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             run(&input);
         }
     }
