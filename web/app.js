@@ -3,6 +3,7 @@
 
 import { ApiError, checkAuth, deleteLayer, getBlob, getJSON, resolveStyles, setAdminToken } from './api.js';
 import { ArtMapsPanel } from './artmaps.js';
+import { CommentsPanel } from './comments.js';
 import { Connection, statsText } from './connection.js';
 import { DataPanel, legendUrl } from './data-panel.js';
 import { direction, LANGUAGES, currentLanguage, setLanguage, startLanguage, t, translate } from './i18n.js';
@@ -949,6 +950,8 @@ async function main() {
   setupLogin();
   setupConnection();
   setupMeeting();
+  app.comments = new CommentsPanel({ $, t, app });
+  app.comments.load();
   // A link showing data opens on the data maps, their legends in sight.
   if (app.view.mappings.length) app.selectTab('data');
   showPlanState();

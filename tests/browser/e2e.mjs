@@ -340,6 +340,32 @@ try {
     await stillAfter(page, () => page.locator('#with-plan').click());
   });
 
+  await check('a citizen comments on a place: pinned in the view, listed, stored where it was pointed at', async () => {
+    await openPane(page, 'comments');
+    const before = await pixels(page);
+    await page.locator('#comment-add').click();
+    assert.match(await page.locator('#comment-message').textContent(), /place in the view/);
+    const box = await page.locator('#viewer').boundingBox();
+    await page.locator('#viewer').click({ position: { x: box.width / 2, y: box.height * 0.85 } });
+    await page.locator('#comment-form').waitFor({ state: 'visible' });
+    await page.locator('#comment-text').fill('The hedge would block my view of the hills');
+    await page.locator('#comment-category').selectOption('concern');
+    await stillAfter(page, () => page.locator('#comment-send').click());
+    await page.locator('#comment-list li').first().waitFor({ state: 'visible', timeout: WAIT });
+    assert.match(await page.locator('#comment-list').textContent(), /block my view/);
+    assert.match(await page.locator('#comment-message').textContent(), /number 1/);
+    assert.equal(await page.locator('#comments-show').getAttribute('aria-pressed'), 'true');
+    assert.ok(difference(before, await pixels(page)) > 0, 'the pin is drawn in the view');
+    const stored = await page.evaluate(async () => (await (await fetch('/api/comments')).json()).comments);
+    assert.equal(stored.length, 1);
+    assert.equal(stored[0].category, 'concern');
+    assert.ok(['terrain', 'plant'].includes(stored[0].hit.kind), `pointed at the ground or a plant: ${JSON.stringify(stored[0].hit)}`);
+    await shot(page, 'citizen-comment');
+    await stillAfter(page, () => page.locator('#comments-show').click());
+    assert.equal(await page.locator('#comments-show').getAttribute('aria-pressed'), 'false');
+    await openPane(page, 'about');
+  });
+
   await check('a look is chosen from pictures, not parameters', async () => {
     const looks = page.locator('#looks [role="radio"]');
     assert.ok((await looks.count()) >= 3, 'three or more looks');
