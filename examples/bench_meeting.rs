@@ -14,6 +14,7 @@ use clap::Parser;
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::ws::FrameHeader;
 use landsketch::api::{Server, ServerConfig};
+use landsketch::bench::{percentile, rss_mib};
 use landsketch::render::Gpu;
 use landsketch::scene::Scene;
 use std::collections::HashMap;
@@ -40,24 +41,6 @@ struct Args {
     /// Seconds the presenter moves.
     #[arg(long, default_value_t = 30)]
     seconds: u64,
-}
-
-/// Resident memory of this process (server and clients) in MiB (Linux).
-fn rss_mib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let kib = status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
-        .and_then(|v| v.split_whitespace().next()?.parse::<f64>().ok())
-        .unwrap_or(0.0);
-    kib / 1024.0
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 /// The sum of a metric's samples (all label sets).
@@ -127,7 +110,7 @@ async fn main() -> Result<()> {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     let (w, h) = (args.width, args.height);
-    let rss_before = rss_mib();
+    let rss_before = rss_mib().unwrap_or(f64::NAN);
 
     // The presenter opens the meeting.
     let (mut presenter, _) =
@@ -175,7 +158,7 @@ async fn main() -> Result<()> {
             }
         }
         if rss_during == 0.0 && started.elapsed() > run_for / 2 {
-            rss_during = rss_mib();
+            rss_during = rss_mib().unwrap_or(f64::NAN);
         }
     }
     let moving_frames = presented.len();
@@ -212,7 +195,7 @@ async fn main() -> Result<()> {
     }
     presenter.close(None).await?;
     tokio::time::sleep(Duration::from_secs(1)).await;
-    let rss_after = rss_mib();
+    let rss_after = rss_mib().unwrap_or(f64::NAN);
     shares.sort_by(f64::total_cmp);
     delays.sort_by(f64::total_cmp);
     let frames = presented.len();

@@ -12,6 +12,7 @@ use clap::Parser;
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::ws::FrameHeader;
 use landsketch::api::{Server, ServerConfig};
+use landsketch::bench::{percentile, rss_mib};
 use landsketch::render::Gpu;
 use landsketch::scene::Scene;
 use std::net::SocketAddr;
@@ -39,24 +40,6 @@ struct Args {
     /// Seconds each WebSocket measurement runs.
     #[arg(long, default_value_t = 30)]
     seconds: u64,
-}
-
-/// Resident memory of this process in MiB (Linux), for the before/after comparison.
-fn rss_mib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let kib = status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
-        .and_then(|v| v.split_whitespace().next()?.parse::<f64>().ok())
-        .unwrap_or(0.0);
-    kib / 1024.0
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 /// Renders per second of `count` sequential GETs produced by `url`.
@@ -143,12 +126,12 @@ async fn main() -> Result<()> {
     );
     println!("| --- | --- | --- | --- | --- |");
     for &count in &args.sessions {
-        let before = rss_mib();
+        let before = rss_mib().unwrap_or(f64::NAN);
         let run_for = Duration::from_secs(args.seconds);
         let url = format!("ws://{addr}/api/ws?width={w}&height={h}&format=jpeg");
         let tasks: Vec<_> = (0..count).map(|i| tokio::spawn(session(url.clone(), run_for, i))).collect();
         tokio::time::sleep(run_for / 2).await;
-        let during = rss_mib();
+        let during = rss_mib().unwrap_or(f64::NAN);
         let mut latencies = Vec::new();
         let mut rates = Vec::new();
         for task in tasks {
@@ -157,7 +140,7 @@ async fn main() -> Result<()> {
             rates.push(f64::from(frames) / run_for.as_secs_f64());
         }
         tokio::time::sleep(Duration::from_secs(1)).await;
-        let after = rss_mib();
+        let after = rss_mib().unwrap_or(f64::NAN);
         latencies.sort_by(f64::total_cmp);
         rates.sort_by(f64::total_cmp);
         println!(

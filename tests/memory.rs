@@ -8,16 +8,6 @@ mod common;
 use common::{full_detail, trees_on_a_plain};
 use landsketch::render::{FrameRequest, Style};
 
-fn resident_mib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
-    let kib: f64 = status
-        .lines()
-        .find(|l| l.starts_with("VmRSS:"))
-        .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
-        .expect("VmRSS");
-    kib / 1024.0
-}
-
 /// One measurement at a time: another test's allocations would move the resident size.
 fn measuring() -> std::sync::MutexGuard<'static, ()> {
     static MEASURING: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -37,11 +27,11 @@ fn rendering_many_frames_does_not_grow_memory() {
     for _ in 0..10 {
         frame();
     }
-    let before = resident_mib();
+    let before = landsketch::bench::rss_mib().expect("VmRSS in /proc/self/status");
     for _ in 0..60 {
         frame();
     }
-    let growth = resident_mib() - before;
+    let growth = landsketch::bench::rss_mib().expect("VmRSS in /proc/self/status") - before;
     assert!(growth < 60.0, "60 frames grew the resident size by {growth:.0} MiB");
 }
 
@@ -95,10 +85,10 @@ fn rendering_many_mapped_frames_does_not_grow_memory() {
     for i in 0..20 {
         frame(i);
     }
-    let before = resident_mib();
+    let before = landsketch::bench::rss_mib().expect("VmRSS in /proc/self/status");
     for i in 0..1000 {
         frame(i);
     }
-    let growth = resident_mib() - before;
+    let growth = landsketch::bench::rss_mib().expect("VmRSS in /proc/self/status") - before;
     assert!(growth < 50.0, "1,000 mapped frames grew the resident size by {growth:.0} MiB");
 }

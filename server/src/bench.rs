@@ -176,14 +176,31 @@ fn encode_jpeg(image: &image::RgbaImage) -> Result<usize, image::ImageError> {
     Ok(crate::render::image_format::ImageFormat::Jpeg.encode(image, Some(80))?.len())
 }
 
+/// A memory figure of this process from `/proc/self/status` in MiB (Linux; `None` elsewhere):
+/// `VmHWM` (peak) or `VmRSS` (now).
+fn status_mib(key: &str) -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kib: f64 = status.lines().find_map(|l| l.strip_prefix(key))?.split_whitespace().next()?.parse().ok()?;
+    Some(kib / 1024.0)
+}
+
 /// Peak resident set size of this process in MiB (Linux; 0 elsewhere).
 pub fn peak_rss_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
-        })
-        .map_or(0.0, |kib: f64| kib / 1024.0)
+    status_mib("VmHWM:").unwrap_or(0.0)
+}
+
+/// Resident set size of this process now, in MiB (Linux; `None` elsewhere): the before /
+/// during / after figures of the server benchmarks and the memory tests.
+pub fn rss_mib() -> Option<f64> {
+    status_mib("VmRSS:")
+}
+
+/// The `p`-quantile (0…1, nearest rank) of ascending `sorted` values; NaN when empty.
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 /// The CPU model name (Linux; "unknown" elsewhere).
