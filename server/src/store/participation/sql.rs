@@ -514,20 +514,31 @@ mod tests {
         assert_eq!(mode, "wal");
     }
 
-    /// A throw-away PostgreSQL server (Debian's, from `/usr/local/bin`) on a Unix socket in a
-    /// temporary directory, stopped when dropped.
+    /// A throw-away PostgreSQL server (Debian's `postgresql` package, installed by
+    /// `scripts/setup`) on a Unix socket in a temporary directory, stopped when dropped.
     struct TempPostgres {
         dir: tempfile::TempDir,
         server: std::process::Child,
     }
 
     impl TempPostgres {
-        const BIN: &str = "/usr/local/bin";
+        /// The directory of the server binaries: Debian keeps them in
+        /// `/usr/lib/postgresql/<major>/bin` (the newest is taken); `/usr/local/bin` first.
+        fn bin() -> Option<std::path::PathBuf> {
+            let debian = std::fs::read_dir("/usr/lib/postgresql").into_iter().flatten().flatten().map(|e| e.path());
+            let mut majors: Vec<_> = debian.filter(|p| p.join("bin/initdb").exists()).collect();
+            majors.sort_by_key(|p| p.file_name().and_then(|n| n.to_str()?.parse::<u32>().ok()));
+            let local = Path::new("/usr/local/bin");
+            if local.join("initdb").exists() {
+                return Some(local.to_path_buf());
+            }
+            majors.pop().map(|p| p.join("bin"))
+        }
 
         /// Runs `program` of the PostgreSQL binaries as the `postgres` user when this is root
         /// (PostgreSQL refuses to run as root).
-        fn command(program: &str) -> std::process::Command {
-            let path = format!("{}/{program}", Self::BIN);
+        fn command(bin: &Path, program: &str) -> std::process::Command {
+            let path = bin.join(program).to_string_lossy().into_owned();
             let root = std::process::Command::new("id").arg("-u").output().is_ok_and(|o| o.stdout == b"0\n");
             if root {
                 let mut command = std::process::Command::new("setpriv");
@@ -540,9 +551,7 @@ mod tests {
 
         /// `None` when PostgreSQL is not installed.
         fn start() -> Option<TempPostgres> {
-            if !Path::new(Self::BIN).join("initdb").exists() {
-                return None;
-            }
+            let bin = Self::bin()?;
             let dir = tempfile::tempdir().expect("temporary directory");
             if let Ok(user) = std::process::Command::new("id").args(["-u", "postgres"]).output()
                 && let Ok(uid) = String::from_utf8_lossy(&user.stdout).trim().parse::<u32>()
@@ -550,14 +559,14 @@ mod tests {
                 std::os::unix::fs::chown(dir.path(), Some(uid), None).expect("hand the directory to postgres");
             }
             let data = dir.path().join("data");
-            let initdb = Self::command("initdb")
+            let initdb = Self::command(&bin, "initdb")
                 .args(["-A", "trust", "-U", "landsketch", "-D"])
                 .arg(&data)
                 .stdout(std::process::Stdio::null())
                 .status()
                 .expect("initdb");
             assert!(initdb.success(), "initdb failed");
-            let server = Self::command("postgres")
+            let server = Self::command(&bin, "postgres")
                 .arg("-D")
                 .arg(&data)
                 .arg("-k")
@@ -586,7 +595,7 @@ mod tests {
     #[tokio::test]
     async fn postgres_store_runs_the_same_migrations_and_queries() {
         let Some(postgres) = TempPostgres::start() else {
-            eprintln!("PostgreSQL is not installed in /usr/local/bin; skipped");
+            eprintln!("PostgreSQL is not installed (scripts/setup installs it); skipped");
             return;
         };
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
