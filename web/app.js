@@ -12,6 +12,7 @@ import { keepInside, Navigator } from './navigation.js';
 import { horizontalFov, MiniMap, showCompass, showScaleBar } from './orientation.js';
 import { composeReport, reportText } from './report.js';
 import { StyleModel, StylePanel } from './style-panel.js';
+import { showViewpoints, viewpointCamera } from './viewpoints.js';
 import { setupUpload } from './upload.js';
 
 const $ = (id) => document.getElementById(id);
@@ -267,6 +268,22 @@ function goToPlan() {
   const camera = planCamera();
   if (camera) setCamera(camera);
   else say(t('msg.noPlan'));
+}
+
+/** The planner's viewpoints as buttons in the About pane (none: the list is hidden). */
+async function loadViewpoints() {
+  let viewpoints = [];
+  try {
+    viewpoints = (await getJSON('/api/viewpoints')).viewpoints ?? [];
+  } catch {
+    viewpoints = [];
+  }
+  $('viewpoints-section').hidden = viewpoints.length === 0;
+  showViewpoints($('viewpoints'), viewpoints, (viewpoint) => {
+    setCamera(viewpointCamera(viewpoint.camera ?? {}, app.base));
+    if (viewpoint.caption) say(viewpoint.caption, 'info');
+    $('viewer').focus();
+  });
 }
 
 /** The camera of "Go to the plan", or null without a planned layer. */
@@ -952,6 +969,10 @@ async function main() {
   setupMeeting();
   app.comments = new CommentsPanel({ $, t, app });
   app.comments.load();
+  loadViewpoints();
+  app.connection.addEventListener('changed', (e) => {
+    if (e.detail.what === 'viewpoints') loadViewpoints();
+  });
   // A link showing data opens on the data maps, their legends in sight.
   if (app.view.mappings.length) app.selectTab('data');
   showPlanState();

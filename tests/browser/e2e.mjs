@@ -366,6 +366,19 @@ try {
     await openPane(page, 'about');
   });
 
+  await check("the planner's viewpoints are places to look from", async () => {
+    const buttons = page.locator('#viewpoints button');
+    await buttons.first().waitFor({ state: 'visible', timeout: WAIT });
+    const scene = await page.evaluate(async () => (await (await fetch('/api/viewpoints')).json()).viewpoints);
+    assert.equal(await buttons.count(), scene.length);
+    const first = scene[0];
+    const camera = await stillAfter(page, () => buttons.first().click());
+    assert.ok(Math.hypot(camera.position[0] - first.camera.position[0], camera.position[1] - first.camera.position[1]) < 1, 'at the viewpoint');
+    assert.equal(await page.locator('#message').textContent(), first.caption);
+    assert.equal(await page.evaluate(() => document.activeElement.id), 'viewer', 'the keys walk after a viewpoint');
+    await stillAfter(page, () => page.locator('#go-plan').click());
+  });
+
   await check('a look is chosen from pictures, not parameters', async () => {
     const looks = page.locator('#looks [role="radio"]');
     assert.ok((await looks.count()) >= 3, 'three or more looks');
