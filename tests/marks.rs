@@ -6,7 +6,7 @@
 mod common;
 
 use common::{assert_matches_reference, gpu, luminance, outliers, trees_on_a_plain};
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 use image::RgbaImage;
 use landsketch::render::compare::Compare;
 use landsketch::render::layer_code::LayerCode;
@@ -24,13 +24,6 @@ fn sample() -> &'static (Scene, Renderer) {
         let renderer = Renderer::new(gpu(), &scene).expect("renderer");
         (scene, renderer)
     })
-}
-
-/// The pixel (x right, y down) where `camera` sees the world point `p` in a `w` × `h` image.
-fn project(camera: &Camera, (w, h): (u32, u32), p: Vec3) -> (f32, f32) {
-    let clip = camera.projection(w as f32 / h as f32) * camera.view() * Vec4::new(p.x, p.y, p.z, 1.0);
-    let ndc = clip.truncate() / clip.w;
-    ((ndc.x * 0.5 + 0.5) * w as f32, (0.5 - ndc.y * 0.5) * h as f32)
 }
 
 /// A point on the terrain of `scene` at (x, y).
@@ -103,7 +96,7 @@ fn a_pin_is_drawn_at_its_projected_pixel_unless_a_hill_hides_it() {
     // Seen: the depth at its pixel is about its distance (ground at a grazing angle spans
     // metres per pixel); hidden: something much nearer is in front.
     let seen = |p: Vec3| {
-        let (x, y) = project(&camera, size, p);
+        let (x, y) = camera.point_pixel(p, size.0, size.1);
         let distance = -(camera.view() * p.extend(1.0)).z;
         depth[(y as u32 * size.0 + x as u32) as usize] > 0.85 * distance
     };
@@ -121,7 +114,7 @@ fn a_pin_is_drawn_at_its_projected_pixel_unless_a_hill_hides_it() {
     let with = render(&pins);
     assert_matches_reference(&with, Path::new("tests/reference/marks/pins_hill.png"), 0.01);
     for pin in &pins {
-        let (x, y) = project(&camera, size, pin.position);
+        let (x, y) = camera.point_pixel(pin.position, size.0, size.1);
         // The stem rises from the ground point; the head sits above it.
         let around = changed(&without, &with, (x - 12.0, x + 12.0), (y - 60.0, y + 3.0));
         let ground_ink = ink_near(&with, (x, y - 4.0), (2.0, 3.0));
@@ -142,7 +135,7 @@ fn a_pin_is_drawn_at_its_projected_pixel_unless_a_hill_hides_it() {
     };
     let (bare, pinned) = (from_above(&[]), from_above(&pins));
     for pin in &pins {
-        let (x, y) = project(&plan, (320, 320), pin.position);
+        let (x, y) = plan.point_pixel(pin.position, 320, 320);
         assert!(
             changed(&bare, &pinned, (x - 12.0, x + 12.0), (y - 50.0, y + 3.0)) > 60,
             "plan view pin {}",
@@ -186,7 +179,7 @@ fn pins_read_as_numbered_pen_pins_near_far_and_from_above() {
     let bare =
         renderer.render(FrameRequest::new(&camera, Style::default(), 512, 384).read(Readback::DEPTH)).expect("bare");
     let drawn = |pin: &Pin| {
-        let (x, y) = project(&camera, (512, 384), pin.position);
+        let (x, y) = camera.point_pixel(pin.position, 512, 384);
         changed(&bare.image, &near.image, (x - 24.0, x + 24.0), (y - 60.0, y + 3.0))
     };
     let sizes: Vec<usize> = pins.iter().map(drawn).collect();
@@ -195,7 +188,7 @@ fn pins_read_as_numbered_pen_pins_near_far_and_from_above() {
     // hide are not.
     let depth = bare.depth.expect("depth");
     for (pin, size) in pins.iter().zip(&sizes) {
-        let (x, y) = project(&camera, (512, 384), pin.position);
+        let (x, y) = camera.point_pixel(pin.position, 512, 384);
         let distance = -(camera.view() * pin.position.extend(1.0)).z;
         let inside = (0.0..512.0).contains(&x) && (0.0..384.0).contains(&y);
         let at = if inside { depth[(y as usize) * 512 + x as usize] / distance } else { 0.0 };

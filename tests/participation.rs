@@ -582,15 +582,6 @@ async fn render(server: &TestServer, body: &Value) -> (String, image::RgbaImage)
     (etag, image::load_from_memory(&bytes).expect("PNG").to_rgba8())
 }
 
-/// Where a scene point lands in a `width` × `height` image of `camera`.
-fn project(camera: &Camera, point: [f64; 3], width: u32, height: u32) -> (f32, f32) {
-    let clip = camera.projection(width as f32 / height as f32)
-        * camera.view()
-        * glam::Vec4::new(point[0] as f32, point[1] as f32, point[2] as f32, 1.0);
-    let ndc = clip.truncate() / clip.w;
-    ((ndc.x + 1.0) / 2.0 * width as f32, (1.0 - ndc.y) / 2.0 * height as f32)
-}
-
 #[tokio::test]
 async fn comments_are_drawn_as_pins_where_they_were_made_and_hidden_ones_never() {
     let dir = tempfile::tempdir().expect("temporary directory");
@@ -607,7 +598,7 @@ async fn comments_are_drawn_as_pins_where_they_were_made_and_hidden_ones_never()
     let (plain_tag, plain) = render(&server, &view(false)).await;
     let (pinned_tag, pinned) = render(&server, &view(true)).await;
     assert_ne!(plain_tag, pinned_tag, "the pins are part of the view's ETag");
-    let (px, py) = project(&camera, point, w, h);
+    let (px, py) = camera.point_pixel(glam::DVec3::from_array(point).as_vec3(), w, h);
     let changed = differing(&plain, &pinned);
     assert!(!changed.is_empty(), "the pin is drawn");
     for &(x, y) in &changed {
@@ -676,7 +667,8 @@ async fn a_session_shows_comment_pins_that_follow_the_comments_live() {
     let point = position_of(&made);
     let (w, h) = (200, 150);
     let eye = [point[0] as f32, point[1] as f32 - 80.0, point[2] as f32 + 25.0];
-    let (px, py) = project(&Camera::perspective(eye, 0.0, -15.0, 60.0), point, w, h);
+    let (px, py) =
+        Camera::perspective(eye, 0.0, -15.0, 60.0).point_pixel(glam::DVec3::from_array(point).as_vec3(), w, h);
     let query = format!(
         "x={}&y={}&z={}&yaw=0&pitch=-15&fov=60&width={w}&height={h}&format=png&comments=true",
         eye[0], eye[1], eye[2]

@@ -151,6 +151,16 @@ impl Camera {
         self.unproject(ndc_x, ndc_y, depth, w / h)
     }
 
+    /// Where the world point `point` lands in a `width` × `height` image: image coordinates
+    /// (x right, y down, the centre of pixel (c, r) at (c + 0.5, r + 0.5)), the inverse of
+    /// [`Camera::pixel_point`].
+    pub fn point_pixel(&self, point: Vec3, width: u32, height: u32) -> (f32, f32) {
+        let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+        let clip = self.projection(w / h) * self.view() * point.extend(1.0);
+        let ndc = clip.truncate() / clip.w;
+        ((ndc.x + 1.0) / 2.0 * w, (1.0 - ndc.y) / 2.0 * h)
+    }
+
     /// Checks that every number is finite, the field of view is within 1..=170 degrees and a
     /// plan view's width is positive.
     pub fn is_valid(&self) -> bool {
@@ -174,12 +184,13 @@ mod tests {
         let cam = Camera { roll: 7.0, ..Camera::perspective([10.0, 20.0, 105.0], 30.0, -12.0, 50.0) };
         let (w, h) = (320, 240);
         let target = Vec3::new(60.0, 110.0, 98.0);
-        let clip = cam.projection(w as f32 / h as f32) * cam.view() * target.extend(1.0);
-        let ndc = clip.truncate() / clip.w;
-        let column = ((ndc.x + 1.0) * 0.5 * w as f32 - 0.5).round() as u32;
-        let row = ((1.0 - ndc.y) * 0.5 * h as f32 - 0.5).round() as u32;
+        let (x, y) = cam.point_pixel(target, w, h);
+        let (column, row) = ((x - 0.5).round() as u32, (y - 0.5).round() as u32);
         let depth = -(cam.view() * target.extend(1.0)).z;
         let back = cam.pixel_point(column, row, depth, w, h);
+        // And back to the pixel's centre.
+        let (bx, by) = cam.point_pixel(back, w, h);
+        assert!((bx - (column as f32 + 0.5)).abs() < 1e-2 && (by - (row as f32 + 0.5)).abs() < 1e-2, "{bx}, {by}");
         // Within one pixel's footprint at that depth.
         let footprint = depth * (cam.fov.to_radians() * 0.5).tan() * 2.0 / h as f32;
         assert!((back - target).length() < footprint * 1.5, "{back} vs {target}");
