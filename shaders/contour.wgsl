@@ -40,10 +40,31 @@ fn tone(p: vec2<i32>) -> f32 {
     let lum = sqrt(dot(albedo.rgb, vec3<f32>(0.2126, 0.7152, 0.0722)));
     let l = light * mix(1.0, lum, post.albedo_weight);
     var t = saturate((l - post.tone_reference) * post.tone_contrast + post.tone_reference);
+    // The land-cover class's tone offset (forest floor dark, meadow light), or paper for a
+    // class drawn without strokes; plain ground and plants have neither.
+    let land = cover[cover_index(textureLoad(id_tex, p, 0).xy)];
+    t = select(saturate(t + land.tone), 1.0, land.strokes == COVER_NONE);
     if post.tone_levels > 0.0 {
         t = round(t * post.tone_levels) / post.tone_levels;
     }
     return t;
+}
+
+// The outline between two land-cover classes (`land_cover_outline`): a terrain pixel whose
+// right or lower neighbour is terrain of another class, one of the two outlined. Drawn with the
+// contours, so it is one pixel wide and fixed to the ground like the classes.
+fn cover_border(p: vec2<i32>) -> f32 {
+    let size = textureDimensions(id_tex);
+    let here = textureLoad(id_tex, p, 0).xy;
+    let a = cover_index(here);
+    var edge = 0.0;
+    for (var k = 0; k < 2; k++) {
+        let q = textureLoad(id_tex, clamp_coord(p + vec2<i32>(1 - k, k), size), 0).xy;
+        let b = cover_index(q);
+        let outlined = max(cover[a].outline, cover[b].outline) > 0.0;
+        edge = max(edge, select(0.0, 1.0, is_terrain(here) && is_terrain(q) && b != a && outlined));
+    }
+    return edge * post.land_cover_outline;
 }
 
 @fragment
@@ -52,5 +73,5 @@ fn fs_contour(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     // Each pixel in the style of its layer (thesis 8.2.8): contours lie on the nearer surface,
     // so an edge between two layers takes the style of the one in front.
     use_style(textureLoad(id_tex, p, 0).x);
-    return vec4<f32>(contour(p), tone(p), 0.0, 1.0);
+    return vec4<f32>(max(contour(p), cover_border(p)), tone(p), 0.0, 1.0);
 }

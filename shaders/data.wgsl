@@ -144,8 +144,10 @@ fn apply(index: u32, slot: DataSlot, lut: texture_2d<f32>, v: f32, object: u32, 
 @fragment
 fn fs_data(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<u32> {
     let p = vec2<i32>(frag.xy);
-    // Without a hatch-pattern mapping a pixel keeps the TAM of its layer's style (thesis 8.2.8).
-    let own_tam = styles.slots[style_slot(textureLoad(id_tex, p, 0).x)].hatch_map;
+    // Without a hatch-pattern mapping a pixel keeps the TAM of its layer's style (thesis 8.2.8),
+    // or of its land-cover class.
+    let ids = textureLoad(id_tex, p, 0).xy;
+    let own_tam = cover_tam(ids, styles.slots[style_slot(ids.x)].hatch_map);
     var f = Features(vec3<f32>(1.0), vec2<f32>(0.0), own_tam, 0u, 1u, vec3<f32>(0.0));
     let depth = textureLoad(depth_tex, p, 0).r;
     // The background has no data. Selected, not branched on: see `bilinear`.

@@ -6,8 +6,9 @@
 
 fn data_at(p: vec2<i32>) -> vec4<u32> {
     if !DATA_LAYERS {
-        // "No data" as the projection pass would clear to, with the style's TAM.
-        return vec4<u32>(0xffffffffu, 0u, post.hatch_map, 1u);
+        // "No data" as the projection pass would clear to, with the style's (or the land-cover
+        // class's) TAM.
+        return vec4<u32>(0xffffffffu, 0u, cover_tam(textureLoad(id_tex, p, 0).xy, post.hatch_map), 1u);
     }
     return textureLoad(data_tex, p, 0);
 }

@@ -23,6 +23,9 @@ override LEAF_PARTICLES: bool = false;
 // lavapipe, and indexing a uniform array with a computed slot leaked memory every frame in
 // its version 22.3 (see tests/memory.rs).
 @group(0) @binding(2) var<uniform> layer: LayerStyle;
+// The land-cover classes of the ground (`render::ground_cover`), entry 0 the plain ground; the
+// terrain's texture holds each cell's class index in its alpha.
+@group(0) @binding(3) var<storage, read> cover: array<CoverStyle>;
 @group(1) @binding(0) var<uniform> material: SurfaceMaterial;
 @group(1) @binding(1) var base_tex: texture_2d<f32>;
 @group(1) @binding(2) var base_sampler: sampler;
@@ -299,9 +302,12 @@ fn hybrid_uv(frag: vec2<f32>, in: VertexOut) -> vec2<f32> {
     return in.reference_uv + f * q;
 }
 
-// The terrain's strokes (`render::style::TerrainStrokes`).
+// The terrain's strokes (`render::style::TerrainStrokes`), and a land-cover class's own
+// (`scene::cover::CoverStrokes`: 0 the style's, 1 and 2 as the style's codes).
 const TERRAIN_IMAGE: u32 = 0u;
 const TERRAIN_CONTOUR: u32 = 1u;
+const COVER_FURROWS: u32 = 3u;
+const COVER_RIPPLES: u32 = 4u;
 // Stroke orientations of object-space terrain hatching: a pixel blends the two quantized
 // orientations nearest its own, each with hatch coordinates fixed to the ground, so a
 // direction that varies over the slope never rotates (and swirls) the coordinates themselves.
@@ -326,13 +332,23 @@ struct TerrainHatch {
 // that bin alone) so fewer pixels show two half-strength stroke sets. The stroke
 // direction follows the land (Bratkova et al. 2009, Buchin et al. 2011): the fall line is the
 // horizontal part of the normal (downhill), the contour direction its perpendicular; on
-// near-flat ground it fades to a fixed direction instead of noise.
-fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>) -> TerrainHatch {
+// near-flat ground it fades to a fixed direction instead of noise. A land-cover class may
+// override the direction (`land`): furrows at a fixed angle on the ground, ripples across the
+// view (the camera's right axis), as a panorama painter gives fields and water their own
+// strokes (Bratkova et al. 2009).
+fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>, land: CoverStyle) -> TerrainHatch {
     let metres_per_px = sqrt(length(dpdx(world_xy)) * length(dpdy(world_xy)));
     let scale = exp2(floor(log2(max(metres_per_px * layer.terrain_tile, 1e-6))));
+    let strokes = select(layer.terrain_strokes, land.strokes, land.strokes != 0u);
     var d = n.xy + vec2<f32>(0.01, 0.0);
-    if layer.terrain_strokes == TERRAIN_CONTOUR {
+    if strokes == TERRAIN_CONTOUR {
         d = vec2<f32>(-d.y, d.x);
+    }
+    if strokes == COVER_FURROWS {
+        d = vec2<f32>(cos(land.angle), sin(land.angle));
+    }
+    if strokes == COVER_RIPPLES {
+        d = vec2<f32>(frame.view[0].x, frame.view[1].x) + vec2<f32>(1e-4, 0.0);
     }
     let x = fract(atan2(d.y, d.x) / PI) * TERRAIN_ORIENTATIONS;
     let a = floor(x);
@@ -344,6 +360,42 @@ fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>) -> TerrainHatch {
     let ta = vec2<f32>(dot(p, ra), ra.x * p.y - ra.y * p.x);
     let tb = vec2<f32>(dot(p, rb), rb.x * p.y - rb.y * p.x);
     return TerrainHatch(vec4<f32>(ta, tb), metres_per_px / scale, smoothstep(0.25, 0.75, x - a));
+}
+
+// The land-cover class index of a terrain pixel at drape coordinates `uv` (the alpha of the
+// terrain's texture, `scene::cover::Drape::mip_chain`): read at the mip level of the pixel's
+// footprint (whose classes are the mode of the finer ones), as the class that holds the most
+// bilinear weight among the four nearest cells, so class borders run as smooth diagonals
+// instead of cell staircases and never blend two classes into a third.
+fn cover_class(uv: vec2<f32>) -> u32 {
+    let texels = uv * vec2<f32>(textureDimensions(base_tex, 0));
+    let footprint = sqrt(length(dpdx(texels)) * length(dpdy(texels)));
+    let level = clamp(i32(floor(log2(max(footprint, 1.0)))), 0, i32(textureNumLevels(base_tex)) - 1);
+    let size = vec2<i32>(textureDimensions(base_tex, level));
+    let x = uv * vec2<f32>(size) - 0.5;
+    let cell = vec2<i32>(floor(x));
+    let f = x - floor(x);
+    var classes: array<u32, 4>;
+    var weights: array<f32, 4>;
+    for (var k = 0; k < 4; k++) {
+        let o = vec2<i32>(k & 1, k >> 1u);
+        let q = clamp(cell + o, vec2<i32>(0), size - 1);
+        classes[k] = u32(round(textureLoad(base_tex, q, level).a * 255.0));
+        weights[k] = select(1.0 - f.x, f.x, o.x == 1) * select(1.0 - f.y, f.y, o.y == 1);
+    }
+    var best = classes[0];
+    var best_weight = -1.0;
+    for (var a = 0; a < 4; a++) {
+        var w = 0.0;
+        for (var b = 0; b < 4; b++) {
+            w += select(0.0, weights[b], classes[b] == classes[a]);
+        }
+        if w > best_weight {
+            best_weight = w;
+            best = classes[a];
+        }
+    }
+    return min(best, arrayLength(&cover) - 1u);
 }
 
 // 4×4 ordered-dither value of a pixel in (0, 1): plants between two levels of detail draw
@@ -469,11 +521,16 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     out.depth = vec2<f32>(in.view_depth, radius_px);
     out.ids = in.ids;
     out.hatch = vec4<f32>(t, e);
-    if SURFACE == 0u && !image_space {
-        let terrain = terrain_hatch(in.object_uv, n);
-        out.hatch = terrain.hatch;
-        out.normal.w = terrain.tiles_per_px;
-        out.depth.y = terrain.weight;
+    if SURFACE == 0u {
+        // The land-cover class goes into the terrain's patch ID (which has no HLP).
+        let land = cover_class(in.uv);
+        out.ids = vec2<u32>(in.ids.x, in.ids.y | land);
+        if !image_space {
+            let terrain = terrain_hatch(in.object_uv, n, cover[land]);
+            out.hatch = terrain.hatch;
+            out.normal.w = terrain.tiles_per_px;
+            out.depth.y = terrain.weight;
+        }
     }
     return out;
 }

@@ -10,6 +10,7 @@ use landsketch::render::coherence::{camera_path, flicker};
 use landsketch::render::style::{HatchSpace, TerrainStrokes};
 use landsketch::render::{FrameRequest, Readback, Renderer, Style};
 use landsketch::scene::camera::Camera;
+use landsketch::scene::cover::{CoverClassConfig, CoverStrokes, Drape, DrapeSources, resolve_classes};
 use landsketch::scene::terrain::Terrain;
 use landsketch::scene::{Scene, Sun};
 
@@ -122,6 +123,39 @@ fn strokes_follow_the_fall_line_or_the_contours_of_a_cone() {
         }
         assert!(checked >= 40, "{checked} windows");
         assert!(worst < 20.0, "{direction:?}: strokes up to {worst:.1}° off the expected direction");
+    }
+}
+
+#[test]
+fn furrows_of_a_field_class_run_at_its_angle_whatever_the_slope() {
+    // A ramp rising to the east (fall line west-east) covered by one field class whose furrows
+    // run 30° east of north (`[terrain.cover.7] strokes = "furrows"`, angle 30).
+    let mut scene = terrain_scene(61, 4.0, Sun { azimuth: 135.0, elevation: 45.0 }, |x, _| 50.0 + 0.3 * x);
+    let dem = &scene.terrain.dem;
+    let landcover = Raster { data: vec![7.0; dem.width * dem.height], nodata: Some(0.0), ..dem.clone() };
+    let entries = std::collections::BTreeMap::from([(
+        "7".to_owned(),
+        CoverClassConfig { strokes: Some(CoverStrokes::Furrows), angle: Some(30.0), ..Default::default() },
+    )]);
+    let classes = resolve_classes(None, &entries).expect("classes");
+    let sources =
+        DrapeSources { landcover: Some((&landcover, std::path::Path::new("field.tif"))), orthophoto: None, classes };
+    let drape = Drape::build(sources, &scene.terrain.frame, scene.terrain.bounds(), [1.0; 3]).expect("drape");
+    scene.terrain.set_drape(drape);
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    let size = 192u32;
+    let camera = Camera::plan(0.0, 0.0, 400.0, 160.0);
+    let frame = renderer.render(FrameRequest::new(&camera, strokes_only(TerrainStrokes::FallLine, 0.55), size, size));
+    let l = lum(&frame.expect("render").image);
+    // 30° clockwise from north, in image coordinates (x right, y down).
+    let expected = (-30f32.to_radians().cos()).atan2(30f32.to_radians().sin());
+    let window = 48usize;
+    for wy in 0..size as usize / window {
+        for wx in 0..size as usize / window {
+            let (orientation, coherence) = stroke_orientation(&l, size as usize, wx * window, wy * window, window);
+            let error = orientation_error(orientation, expected).to_degrees();
+            assert!(coherence > 0.2 && error < 20.0, "window ({wx}, {wy}): {error:.1}° off, coherence {coherence:.2}");
+        }
     }
 }
 

@@ -280,25 +280,25 @@ fn palette_from_colormap(map: &[u16], bits: u16) -> Option<Vec<[u8; 3]>> {
     Some((0..n).map(|i| [to8(map[i]), to8(map[n + i]), to8(map[2 * n + i])]).collect())
 }
 
-/// Converts band 1 of decoded samples (`stride` samples per pixel) to `f64`.
-fn band1(result: DecodingResult, stride: usize) -> Vec<f64> {
-    fn pick<T: Copy + Into<f64>>(v: &[T], stride: usize) -> Vec<f64> {
-        v.iter().step_by(stride).map(|&x| x.into()).collect()
+/// Converts band `index` (from 0) of decoded samples (`stride` samples per pixel) to `f64`.
+fn band(result: &DecodingResult, stride: usize, index: usize) -> Vec<f64> {
+    fn pick<T: Copy + Into<f64>>(v: &[T], stride: usize, index: usize) -> Vec<f64> {
+        v.iter().skip(index).step_by(stride).map(|&x| x.into()).collect()
     }
     match result {
-        DecodingResult::U8(v) => pick(&v, stride),
-        DecodingResult::I8(v) => pick(&v, stride),
-        DecodingResult::U16(v) => pick(&v, stride),
-        DecodingResult::I16(v) => pick(&v, stride),
-        DecodingResult::U32(v) => pick(&v, stride),
-        DecodingResult::I32(v) => pick(&v, stride),
-        DecodingResult::F32(v) => pick(&v, stride),
-        DecodingResult::F64(v) => pick(&v, stride),
+        DecodingResult::U8(v) => pick(v, stride, index),
+        DecodingResult::I8(v) => pick(v, stride, index),
+        DecodingResult::U16(v) => pick(v, stride, index),
+        DecodingResult::I16(v) => pick(v, stride, index),
+        DecodingResult::U32(v) => pick(v, stride, index),
+        DecodingResult::I32(v) => pick(v, stride, index),
+        DecodingResult::F32(v) => pick(v, stride, index),
+        DecodingResult::F64(v) => pick(v, stride, index),
         // Rejected by the sample type check before decoding; precision loss is acceptable for
         // the unlikely case that a decoder ever returns them.
-        DecodingResult::U64(v) => v.iter().step_by(stride).map(|&x| x as f64).collect(),
-        DecodingResult::I64(v) => v.iter().step_by(stride).map(|&x| x as f64).collect(),
-        DecodingResult::F16(v) => v.iter().step_by(stride).map(|&x| f64::from(x)).collect(),
+        DecodingResult::U64(v) => v.iter().skip(index).step_by(stride).map(|&x| x as f64).collect(),
+        DecodingResult::I64(v) => v.iter().skip(index).step_by(stride).map(|&x| x as f64).collect(),
+        DecodingResult::F16(v) => v.iter().skip(index).step_by(stride).map(|&x| f64::from(x)).collect(),
     }
 }
 
@@ -348,6 +348,19 @@ pub fn decoding_budget(max_cells: u64) -> u64 {
 
 /// Reads band 1 of a GeoTIFF with its georeferencing, CRS, nodata and palette.
 pub fn read_geotiff(path: &Path) -> Result<Raster, GisError> {
+    let mut bands = read_bands(path, false)?;
+    Ok(bands.swap_remove(0))
+}
+
+/// Reads every band of a pixel-interleaved GeoTIFF (an RGB orthophoto: three rasters), each
+/// with the file's georeferencing, CRS and nodata. A planar (band-sequential) file with more
+/// than one band is an error naming the file.
+pub fn read_geotiff_bands(path: &Path) -> Result<Vec<Raster>, GisError> {
+    read_bands(path, true)
+}
+
+/// [`read_geotiff`] (band 1 only, `all` false) and [`read_geotiff_bands`] (`all` true).
+fn read_bands(path: &Path, all: bool) -> Result<Vec<Raster>, GisError> {
     let bytes = std::fs::read(path).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
     let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
     let bad_geo = |reason: String| GisError::BadGeoreferencing { path: path.to_path_buf(), reason };
@@ -376,6 +389,16 @@ pub fn read_geotiff(path: &Path) -> Result<Raster, GisError> {
         .map_err(|detail| GisError::UnsupportedSampleType { path: path.to_path_buf(), detail })?;
     let photometric = shorts(&mut decoder, Tag::PhotometricInterpretation)?.and_then(|p| p.first().copied());
     let planar = shorts(&mut decoder, Tag::PlanarConfiguration)?.and_then(|p| p.first().copied()) == Some(2);
+    let samples = shorts(&mut decoder, Tag::SamplesPerPixel)?.and_then(|p| p.first().copied()).unwrap_or(1);
+    if all && planar && samples > 1 {
+        return Err(GisError::Tiff {
+            path: path.to_path_buf(),
+            message: format!(
+                "its {samples} bands are stored plane by plane; write it pixel-interleaved \
+                 (gdal_translate -co INTERLEAVE=PIXEL)"
+            ),
+        });
+    }
 
     // Georeferencing and CRS.
     let geokeys = match shorts(&mut decoder, Tag::GeoKeyDirectoryTag)? {
@@ -460,17 +483,22 @@ pub fn read_geotiff(path: &Path) -> Result<Raster, GisError> {
             message: format!("decoded {len} samples for {width} × {height} pixels"),
         });
     }
-    let raster = Raster {
+    let raster = |index: usize| Raster {
         width: width as usize,
         height: height as usize,
-        data: band1(result, stride),
+        data: band(&result, stride, index),
         nodata,
         transform,
         crs,
-        palette,
+        palette: palette.clone(),
     };
-    raster::check_not_all_nodata(path, &raster)?;
-    Ok(raster)
+    let first = raster(0);
+    raster::check_not_all_nodata(path, &first)?;
+    let mut bands = vec![first];
+    if all {
+        bands.extend((1..stride).map(raster));
+    }
+    Ok(bands)
 }
 
 /// The GeoKeys of a GeoTIFF as plain values (SHORT keys and DOUBLE keys), for interpreting

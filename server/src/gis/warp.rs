@@ -34,17 +34,29 @@ pub fn load_raster_in(
     scene: &CrsDefinition,
     within: &Extent,
 ) -> Result<Raster, GisError> {
-    let mut raster = load_raster(path)?;
+    let mut bands = bands_in(path, vec![load_raster(path)?], crs, scene, within)?;
+    Ok(bands.swap_remove(0))
+}
+
+/// [`load_raster_in`] for the bands of one file (e.g. an orthophoto's red, green and blue,
+/// [`super::geotiff::read_geotiff_bands`]): each brought into `scene` on the same grid.
+pub fn bands_in(
+    path: &Path,
+    bands: Vec<Raster>,
+    crs: Option<&CrsDefinition>,
+    scene: &CrsDefinition,
+    within: &Extent,
+) -> Result<Vec<Raster>, GisError> {
     let reproject = |source| GisError::Reproject { path: path.to_path_buf(), source };
+    let Some(first) = bands.first() else { return Ok(bands) };
     let def = match crs {
         Some(c) => c.clone(),
-        None => file_definition(path, &raster).map_err(reproject)?,
+        None => file_definition(path, first).map_err(reproject)?,
     };
     if def.proj_string() == scene.proj_string() {
-        raster.crs = scene.crs();
-        return Ok(raster);
+        return Ok(bands.into_iter().map(|raster| Raster { crs: scene.crs(), ..raster }).collect());
     }
-    warp_nearest(&raster, &def, scene, within).map_err(reproject)
+    bands.iter().map(|raster| warp_nearest(raster, &def, scene, within).map_err(reproject)).collect()
 }
 
 /// Resamples `src` (in `from`) onto a north-up grid in `to` by nearest neighbour. The grid

@@ -230,7 +230,12 @@ impl GeometryFrame {
     /// The WGSL declarations of the geometry-stage blocks (prefixing `shaders/gbuffer.wgsl`).
     pub fn declarations() -> String {
         let mut declarations = Declarations::default();
-        for declare in [GeometryFrame::declare, LayerStyle::declare, SurfaceMaterial::declare] {
+        for declare in [
+            GeometryFrame::declare,
+            LayerStyle::declare,
+            SurfaceMaterial::declare,
+            super::ground_cover::CoverStyle::declare,
+        ] {
             declare(&mut declarations);
         }
         declarations.into_text()
@@ -457,6 +462,7 @@ impl GeometryPass {
                 uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 storage_entry(1, wgpu::ShaderStages::VERTEX),
                 layer_entry(2),
+                storage_entry(3, wgpu::ShaderStages::FRAGMENT),
             ],
         });
         let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {

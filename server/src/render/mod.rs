@@ -10,6 +10,7 @@ pub mod coherence;
 pub mod compare;
 pub mod device;
 pub mod gbuffer;
+pub mod ground_cover;
 pub mod image_format;
 pub mod layer_code;
 pub mod marks;

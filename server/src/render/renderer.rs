@@ -337,6 +337,7 @@ impl Renderer {
                         size: wgpu::BufferSize::new(uniforms::size_of::<LayerStyle>()),
                     }),
                 },
+                wgpu::BindGroupEntry { binding: 3, resource: self.scene.cover_buffer().as_entire_binding() },
             ],
         })
     }
@@ -452,6 +453,7 @@ impl Renderer {
             Resource::SamSampler => wgpu::BindingResource::Sampler(&self.art.sam_sampler),
             Resource::HatchColors => self.projection.hatch_colors().as_entire_binding(),
             Resource::Glyphs => view(&self.glyph_texture),
+            Resource::CoverClasses => self.scene.cover_buffer().as_entire_binding(),
             Resource::Marks => frame.marks.map(wgpu::Buffer::as_entire_binding).ok_or(RenderError::Gpu {
                 stage: "frame",
                 message: "the marks block is read while no marks are drawn".into(),

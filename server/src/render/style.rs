@@ -440,6 +440,10 @@ style_fields! {
     /// black whatever its light): Lehmann's hachure rule "the steeper, the darker", so gentle
     /// relief in full sun (valleys, banks, field edges) still gets sparse strokes.
     terrain_slope_tone: f32 = 0.4, 0..=1;
+    /// How dark the borders between the ground's land-cover classes are drawn (with the
+    /// contours, scaled by `contour_strength`), 0 (none) to 1: the outline of a wood, a field
+    /// or a lake on the ground (`[terrain] landcover`).
+    land_cover_outline: f32 = 0.6, 0..=1;
     /// How dark hatching is drawn, 0 (none) to 1.
     hatch_strength: f32 = 1.0, 0..=1;
     /// Lifts the hatch tone towards white, 0 (as lit) to 1 (brightest: no strokes), thesis

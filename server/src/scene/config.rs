@@ -76,9 +76,26 @@ pub struct TerrainConfig {
     pub dem: PathBuf,
     /// CRS of the DEM when the file carries none (e.g. an `.asc` without `.prj`): "EPSG:4326".
     pub crs: Option<String>,
-    /// Ground albedo, linear RGB 0..1.
+    /// Ground albedo, linear RGB 0..1 (where no land-cover class or orthophoto colours it).
     #[serde(default = "default_albedo")]
     pub albedo: [f32; 3],
+    /// Land cover draped on the ground (SPEC S1): a categorical raster in any CRS with a
+    /// definition, or GeoJSON polygons (read by `landcover_options`); it may be a vegetation
+    /// layer's. Each class is drawn as `classes` and `[terrain.cover.<code>]` say.
+    pub landcover: Option<PathBuf>,
+    /// How to read `landcover`.
+    #[serde(default)]
+    pub landcover_options: LandcoverOptions,
+    /// The classification of `landcover` whose default classes apply: `nlcd`,
+    /// `nlcd_simplified`, `corine` or `worldcover`.
+    pub classes: Option<super::cover::CoverTable>,
+    /// `[terrain.cover.<code>]`: how each land-cover class is drawn (over `classes`).
+    #[serde(default)]
+    pub cover: BTreeMap<String, super::cover::CoverClassConfig>,
+    /// An RGB (or RGBA) orthophoto GeoTIFF, the colour of the ground in the colour styles.
+    pub orthophoto: Option<PathBuf>,
+    /// CRS of `orthophoto` when the file has none or a wrong one.
+    pub orthophoto_crs: Option<String>,
 }
 
 fn default_albedo() -> [f32; 3] {

@@ -3,6 +3,7 @@
 pub mod camera;
 pub mod camera_params;
 pub mod config;
+pub mod cover;
 pub mod gltf_loader;
 pub mod mesh;
 pub mod participation;
@@ -123,7 +124,22 @@ impl Scene {
         if let Ok(def) = &scene_crs {
             dem.crs = def.crs();
         }
-        let terrain = Terrain::new(dem, config.terrain.albedo)?;
+        let mut terrain = Terrain::new(dem, config.terrain.albedo)?;
+        let scene_def = || {
+            scene_crs.clone().map_err(|source| SceneError::Gis(GisError::Reproject { path: dem_path.clone(), source }))
+        };
+        if config.terrain.landcover.is_some() || config.terrain.orthophoto.is_some() || !config.terrain.cover.is_empty()
+        {
+            let drape = load_drape(&config.terrain, base, &scene_def()?, &terrain)?;
+            info!(
+                classes = drape.classes.len(),
+                width = drape.width,
+                height = drape.height,
+                cell = drape.cell,
+                "ground drape"
+            );
+            terrain.set_drape(drape);
+        }
 
         let names: Vec<&String> = config.species.keys().collect();
         let species = config
@@ -159,15 +175,12 @@ impl Scene {
                     Ok(PlacementRule { class: r.class, species, density_per_ha: r.density, min_spacing: r.min_spacing, scale: r.scale })
                 })
                 .collect::<Result<Vec<_>, SceneError>>()?;
-            let scene_def = || {
-                scene_crs
-                    .clone()
-                    .map_err(|source| SceneError::Gis(GisError::Reproject { path: dem_path.clone(), source }))
-            };
             let mut plants = Vec::new();
             match &layer.landcover {
                 Some(file) => {
-                    let landcover = load_landcover(&base.join(file), layer, &scene_def()?, &terrain)?;
+                    let what = format!("layer '{}': landcover_options", layer.name);
+                    let landcover =
+                        load_landcover(&base.join(file), &layer.landcover_options, &what, &scene_def()?, &terrain)?;
                     plants = vegetation::place(&terrain, &landcover, &rules, layer.seed, config.max_plants)?;
                 }
                 None if !rules.is_empty() => {
@@ -255,21 +268,64 @@ impl Scene {
     }
 }
 
-/// A layer's land cover in the scene CRS: a raster reprojected if needed, or GeoJSON
-/// polygons rasterized over the terrain.
+/// The ground's drape (`scene::cover`): the `[terrain]` section's land cover, orthophoto and
+/// classes, in the scene CRS over the terrain.
+fn load_drape(
+    config: &config::TerrainConfig,
+    base: &Path,
+    scene: &CrsDefinition,
+    terrain: &Terrain,
+) -> Result<cover::Drape, SceneError> {
+    let classes = cover::resolve_classes(config.classes, &config.cover)?;
+    let landcover_path = config.landcover.as_ref().map(|file| base.join(file));
+    let landcover = landcover_path
+        .as_deref()
+        .map(|path| load_landcover(path, &config.landcover_options, "terrain.landcover_options", scene, terrain))
+        .transpose()?;
+    let ortho_path = config.orthophoto.as_ref().map(|file| base.join(file));
+    let orthophoto = match &ortho_path {
+        Some(path) => {
+            let crs = config
+                .orthophoto_crs
+                .as_deref()
+                .map(CrsDefinition::parse)
+                .transpose()
+                .map_err(|e| SceneError::Invalid(format!("terrain.orthophoto_crs: {e}")))?;
+            let bands = gis::read_geotiff_bands(path)?;
+            if !(3..=4).contains(&bands.len()) {
+                return Err(SceneError::Invalid(format!(
+                    "{}: an orthophoto needs 3 bands (red, green, blue) or 4 (with alpha); this file has {}",
+                    path.display(),
+                    bands.len()
+                )));
+            }
+            Some(gis::bands_in(path, bands, crs.as_ref(), scene, &terrain.dem.extent())?)
+        }
+        None => None,
+    };
+    let sources = cover::DrapeSources {
+        landcover: landcover.as_ref().zip(landcover_path.as_deref()),
+        orthophoto: orthophoto.as_deref().zip(ortho_path.as_deref()),
+        classes,
+    };
+    cover::Drape::build(sources, &terrain.frame, terrain.bounds(), terrain.albedo)
+}
+
+/// A land cover in the scene CRS: a raster reprojected if needed, or GeoJSON polygons
+/// rasterized over the terrain; `what` names its options in messages.
 fn load_landcover(
     path: &Path,
-    layer: &config::LayerConfig,
+    opts: &config::LandcoverOptions,
+    what: &str,
     scene: &CrsDefinition,
     terrain: &Terrain,
 ) -> Result<gis::Raster, SceneError> {
-    let opts = &layer.landcover_options;
     let crs = opts
         .crs
         .as_deref()
         .map(CrsDefinition::parse)
         .transpose()
-        .map_err(|e| SceneError::Invalid(format!("layer '{}': landcover_options.crs: {e}", layer.name)))?;
+        .map_err(|e| SceneError::Invalid(format!("{what}.crs: {e}")))?;
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if matches!(ext.as_deref(), Some("geojson" | "json")) {
         let target = SceneTarget { crs: scene, frame: &terrain.frame };

@@ -1,6 +1,7 @@
 //! Terrain: the DEM placed in the scene's local metric frame and triangulated with normals.
 
 use super::SceneError;
+use super::cover::Drape;
 use super::mesh::Mesh;
 use crate::gis::{LocalFrame, Raster};
 
@@ -10,8 +11,10 @@ pub struct Terrain {
     pub dem: Raster,
     pub frame: LocalFrame,
     pub mesh: Mesh,
-    /// Albedo of the ground (linear RGB) for shading and tone.
+    /// Albedo of the ground (linear RGB) where no land-cover class or orthophoto colours it.
     pub albedo: [f32; 3],
+    /// The colours and land-cover classes laid on the ground; the mesh's uvs address it.
+    pub drape: Drape,
 }
 
 impl Terrain {
@@ -27,14 +30,12 @@ impl Terrain {
             )));
         }
         let mut positions = Vec::with_capacity(w * h);
-        let mut uvs = Vec::with_capacity(w * h);
         for row in 0..h {
             for col in 0..w {
                 let (cx, cy) = dem.cell_center(col, row);
                 let (x, y) = frame.to_local(cx, cy);
                 let z = dem.get(col, row).unwrap_or(0.0);
                 positions.push([x as f32, y as f32, z as f32]);
-                uvs.push([col as f32 / (w - 1) as f32, row as f32 / (h - 1) as f32]);
             }
         }
         let index = |col: usize, row: usize| (row * w + col) as u32;
@@ -66,7 +67,23 @@ impl Terrain {
                 normal.to_array()
             })
             .collect();
-        Ok(Terrain { mesh: Mesh { positions, normals, uvs, indices }, dem, frame, albedo })
+        let mut terrain = Terrain {
+            mesh: Mesh { uvs: vec![[0.0; 2]; positions.len()], positions, normals, indices },
+            dem,
+            frame,
+            albedo,
+            drape: Drape::plain(albedo, ([0.0; 2], [1.0; 2])),
+        };
+        terrain.set_drape(Drape::plain(albedo, terrain.bounds()));
+        Ok(terrain)
+    }
+
+    /// Lays `drape` on the ground: the mesh's uvs become its texture coordinates.
+    pub fn set_drape(&mut self, drape: Drape) {
+        for (uv, p) in self.mesh.uvs.iter_mut().zip(&self.mesh.positions) {
+            *uv = drape.uv(f64::from(p[0]), f64::from(p[1]));
+        }
+        self.drape = drape;
     }
 
     /// Terrain height (metres) at scene position `(x, y)`, bilinear between cell centres;

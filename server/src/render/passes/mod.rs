@@ -12,6 +12,7 @@ pub mod pipeline;
 pub mod post_block;
 pub mod targets;
 
+use crate::render::ground_cover::CoverStyle;
 use crate::render::layer_code::LayerCode;
 use crate::render::marks::Marks;
 use crate::render::projection::{DataBlock, HatchColors};
@@ -104,6 +105,8 @@ pub enum Resource {
     Marks,
     /// The digits of the pins' heads ([`crate::render::marks::GlyphAtlas`]).
     Glyphs,
+    /// The land-cover classes of the ground ([`crate::render::ground_cover::CoverStyle`]).
+    CoverClasses,
 }
 
 /// How a shader reads a binding.
@@ -121,6 +124,8 @@ pub enum BindingKind {
     Sampler,
     /// A uniform block of the named WGSL type.
     Uniform(&'static str),
+    /// A read-only storage array of the named WGSL type.
+    Storage(&'static str),
 }
 
 impl Resource {
@@ -139,6 +144,7 @@ impl Resource {
             Resource::HatchColors => BindingKind::Uniform("HatchColors"),
             Resource::DataBlock => BindingKind::Uniform("DataBlock"),
             Resource::Marks => BindingKind::Uniform("Marks"),
+            Resource::CoverClasses => BindingKind::Storage("CoverStyle"),
         }
     }
 
@@ -148,6 +154,7 @@ impl Resource {
             Resource::HatchColors => Declarations::of::<HatchColors>(),
             Resource::DataBlock => Declarations::of::<DataBlock>(),
             Resource::Marks => Declarations::of::<Marks>(),
+            Resource::CoverClasses => Declarations::of::<CoverStyle>(),
             _ => String::new(),
         }
     }
@@ -243,6 +250,11 @@ impl PostPassDecl {
                     code.push_str(&format!("@group(0) @binding({}) var<uniform> {}: {ty};\n", i + 1, binding.name));
                     continue;
                 }
+                BindingKind::Storage(ty) => {
+                    let name = binding.name;
+                    code.push_str(&format!("@group(0) @binding({}) var<storage, read> {name}: array<{ty}>;\n", i + 1));
+                    continue;
+                }
             };
             code.push_str(&format!("@group(0) @binding({}) var {}: {ty};\n", i + 1, binding.name));
         }
@@ -279,13 +291,18 @@ pub const PREFILTER: PostPassDecl = PostPassDecl {
 /// nearer surface, eq. 5.1).
 pub const CONTOUR: PostPassDecl = PostPassDecl {
     name: "contour",
-    shader: include_str!("../../../../shaders/contour.wgsl"),
+    shader: concat!(
+        include_str!("../../../../shaders/cover_common.wgsl"),
+        "\n",
+        include_str!("../../../../shaders/contour.wgsl")
+    ),
     entry_points: &[("fs_contour", Gate::Geometry)],
     inputs: &[
         target("depth_tex", Target::Prefiltered),
         target("albedo_tex", Target::Albedo),
         target("normal_tex", Target::Normal),
         target("id_tex", Target::Ids),
+        input("cover", Resource::CoverClasses),
     ],
     output: Target::Contours,
     clear: wgpu::Color { r: 0.0, g: 1.0, b: 0.0, a: 1.0 },
@@ -313,7 +330,11 @@ pub const TONE_BLUR: PostPassDecl = PostPassDecl {
 /// [`crate::render::projection`] prepares its block and fields).
 pub const DATA: PostPassDecl = PostPassDecl {
     name: "data",
-    shader: include_str!("../../../../shaders/data.wgsl"),
+    shader: concat!(
+        include_str!("../../../../shaders/cover_common.wgsl"),
+        "\n",
+        include_str!("../../../../shaders/data.wgsl")
+    ),
     entry_points: &[("fs_data", Gate::None)],
     inputs: &[
         input("data", Resource::DataBlock),
@@ -328,6 +349,7 @@ pub const DATA: PostPassDecl = PostPassDecl {
         input("lower2", Resource::FieldLower(2)),
         input("upper2", Resource::FieldUpper(2)),
         input("lut2", Resource::FieldColors(2)),
+        input("cover", Resource::CoverClasses),
     ],
     output: Target::DataLayers,
     clear: TRANSPARENT,
@@ -344,6 +366,8 @@ pub const DATA: PostPassDecl = PostPassDecl {
 pub const COMPOSE: PostPassDecl = PostPassDecl {
     name: "compose",
     shader: concat!(
+        include_str!("../../../../shaders/cover_common.wgsl"),
+        "\n",
         include_str!("../../../../shaders/data_common.wgsl"),
         "\n",
         include_str!("../../../../shaders/compose.wgsl")
@@ -363,6 +387,7 @@ pub const COMPOSE: PostPassDecl = PostPassDecl {
         target("data_tex", Target::DataLayers),
         input("hatch_colors", Resource::HatchColors),
         target("tone_tex", Target::Tone),
+        input("cover", Resource::CoverClasses),
     ],
     output: Target::Output,
     clear: TRANSPARENT,

@@ -3,7 +3,7 @@
 
 use super::post_block::PostStyle;
 use super::{BindingKind, Draws, PostPassDecl};
-use crate::render::bind_layouts::{texture_entry, uniform_layout_entry};
+use crate::render::bind_layouts::{storage_entry, texture_entry, uniform_layout_entry};
 use crate::render::gbuffer::DEPTH_FORMAT;
 use std::collections::HashMap;
 use std::sync::Mutex;
@@ -30,6 +30,7 @@ impl BindingKind {
                 count: None,
             },
             BindingKind::Uniform(_) => uniform_layout_entry(binding),
+            BindingKind::Storage(_) => storage_entry(binding, wgpu::ShaderStages::FRAGMENT),
         }
     }
 }

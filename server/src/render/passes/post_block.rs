@@ -73,6 +73,8 @@ gpu_block! {
         pub terrain_relief: f32,
         /// Terrain darkening with steepness (0..1).
         pub terrain_slope_tone: f32,
+        /// Ink of the borders between land-cover classes (0..1).
+        pub land_cover_outline: f32,
         /// Ink colour (sRGB).
         pub ink: Vec3f,
         /// Paper colour (sRGB).
@@ -139,6 +141,7 @@ impl PostStyle {
             terrain_tile: style.terrain_tile(),
             terrain_relief: style.terrain_relief,
             terrain_slope_tone: style.terrain_slope_tone,
+            land_cover_outline: style.land_cover_outline,
             ink: Vec3f(style.ink),
             paper: Vec3f(style.paper),
             sky_zenith: Vec3f(style.sky_zenith),

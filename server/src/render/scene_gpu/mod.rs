@@ -19,6 +19,7 @@ pub use cull::{DrawStats, LayerDraw, VisibleSet, frustum_planes};
 
 use super::bake::Baker;
 use super::gbuffer::{GeometryPass, Instance, Surface, object_id};
+use super::ground_cover::cover_buffer;
 use super::layer_code::LayerCode;
 use super::parametrization::RefKey;
 use super::{Gpu, RenderError};
@@ -29,7 +30,6 @@ use crate::prep::lod::{Billboard, LodLevel};
 use crate::prep::masses::{self as mass_groups, MassPlant, Masses};
 use crate::prep::terrain_lod::{TerrainChunk, TerrainLod};
 use crate::scene::Scene;
-use crate::scene::plant::Material;
 use cull::reference_grid;
 use glam::Vec3;
 use masses::{MassGpu, species_color};
@@ -130,6 +130,8 @@ pub struct SceneGpu {
     masses: Option<MassGpu>,
     /// The instances of a frame: room for every plant at two levels, and the terrain.
     instance_buffer: wgpu::Buffer,
+    /// The land-cover classes of the terrain's drape ([`crate::render::ground_cover`]).
+    cover: wgpu::Buffer,
     /// The reference coordinates of a frame, grown when a frame needs more.
     reference_buffer: std::sync::Mutex<wgpu::Buffer>,
     /// GPU memory of everything above.
@@ -147,16 +149,8 @@ impl SceneGpu {
     ) -> Result<SceneGpu, RenderError> {
         let (device, queue) = (&gpu.device, &gpu.queue);
         let mut up = Uploader::new(device, queue, pass, disk);
-        let [r, g, b] = scene.terrain.albedo;
-        let terrain_material = Material {
-            name: "terrain".into(),
-            base_color: [r, g, b, 1.0],
-            texture: None,
-            alpha_cutoff: None,
-            double_sided: false,
-        };
         let terrain_lod = TerrainLod::build(&scene.terrain, TERRAIN_CHUNK_CELLS, TERRAIN_LEVELS);
-        let terrain = up.mesh(&terrain_lod.mesh, None, &terrain_material, Surface::Terrain);
+        let terrain = up.terrain(&terrain_lod.mesh, &scene.terrain.drape);
         let baker = Baker::new(device, &pass.material_layout);
         let mut species = Vec::with_capacity(scene.species.len());
         let mut plant_boards = Vec::with_capacity(scene.species.len());
@@ -246,6 +240,7 @@ impl SceneGpu {
             cells,
             masses,
             instance_buffer,
+            cover: cover_buffer(device, &scene.terrain.drape),
             reference_buffer: std::sync::Mutex::new(reference_buffer(device, 1)),
             gpu_bytes,
         })
@@ -274,6 +269,11 @@ impl SceneGpu {
             RefKey::Plant(plant) => Some(RefKey::Cell(self.plants[plant as usize].cell)),
             RefKey::Cell(_) => None,
         }
+    }
+
+    /// The storage buffer of the drape's land-cover classes (`cover` in the shaders).
+    pub fn cover_buffer(&self) -> &wgpu::Buffer {
+        &self.cover
     }
 
     /// Estimated GPU memory of the scene in bytes (see [`super::Renderer::gpu_bytes`]).

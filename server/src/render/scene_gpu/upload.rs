@@ -11,8 +11,9 @@ use crate::prep::leaves::{self, Leaf, PARTICLE_SHARES};
 use crate::prep::lod::{self, Atlas, Billboard};
 use crate::render::bake::Baker;
 use crate::render::gbuffer::{GeometryPass, LeafVertex, NO_HLP, Surface, SurfaceMaterial, Vertex};
-use crate::render::uniforms;
+use crate::render::uniforms::{self, Vec3f, Vec4f};
 use crate::render::{Gpu, RenderError};
+use crate::scene::cover::Drape;
 use crate::scene::mesh::Mesh;
 use crate::scene::plant::{Material, PartKind, PlantModel};
 use glam::{Vec2, Vec3};
@@ -38,35 +39,41 @@ impl From<PartKind> for Surface {
 fn upload_texture(device: &wgpu::Device, queue: &wgpu::Queue, image: &image::RgbaImage) -> wgpu::TextureView {
     let (width, height) = image.dimensions();
     let levels = 32 - width.max(height).max(1).leading_zeros();
+    let mut chain = vec![image.clone()];
+    for _ in 1..levels {
+        let last = &chain[chain.len() - 1];
+        let (w, h) = last.dimensions();
+        let next = image::imageops::resize(last, (w / 2).max(1), (h / 2).max(1), image::imageops::FilterType::Triangle);
+        chain.push(next);
+    }
+    upload_mip_chain(device, queue, &chain)
+}
+
+/// Uploads `chain` (level 0 first, each level half the one before) as one sRGB RGBA texture.
+fn upload_mip_chain(device: &wgpu::Device, queue: &wgpu::Queue, chain: &[image::RgbaImage]) -> wgpu::TextureView {
+    let (width, height) = chain[0].dimensions();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some("material texture"),
         size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-        mip_level_count: levels,
+        mip_level_count: chain.len() as u32,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format: wgpu::TextureFormat::Rgba8UnormSrgb,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    let mut level_image = image.clone();
-    for level in 0..levels {
-        let (w, h) = level_image.dimensions();
+    for (level, image) in chain.iter().enumerate() {
+        let (w, h) = image.dimensions();
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
                 texture: &texture,
-                mip_level: level,
+                mip_level: level as u32,
                 origin: wgpu::Origin3d::ZERO,
                 aspect: wgpu::TextureAspect::All,
             },
-            &level_image,
+            image,
             wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * w), rows_per_image: Some(h) },
             wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-        );
-        level_image = image::imageops::resize(
-            &level_image,
-            (w / 2).max(1),
-            (h / 2).max(1),
-            image::imageops::FilterType::Triangle,
         );
     }
     texture.create_view(&Default::default())
@@ -124,6 +131,36 @@ impl<'a> Uploader<'a> {
         material: &Material,
         surface: Surface,
     ) -> GpuMesh {
+        let (vertices, indices) = self.vertex_buffers(mesh, hlp, implicit);
+        let material = self.material(material, surface, 1.0);
+        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material, surface }
+    }
+
+    /// The terrain's mesh with its drape (`scene::cover`) as the texture: colours in rgb, the
+    /// land-cover class in alpha, its mip levels filtered by [`Drape::mip_chain`].
+    pub(super) fn terrain(&mut self, mesh: &Mesh, drape: &Drape) -> GpuMesh {
+        let (vertices, indices) = self.vertex_buffers(mesh, None, &[]);
+        let chain = drape.mip_chain();
+        self.bytes += chain.iter().map(|level| 4 * u64::from(level.width()) * u64::from(level.height())).sum::<u64>();
+        let view = upload_mip_chain(self.device, self.queue, &chain);
+        let uniform = SurfaceMaterial {
+            base_color: Vec4f([1.0; 4]),
+            alpha_cutoff: -1.0,
+            alpha_min: -1.0,
+            particle_scale: 1.0,
+            average_color: Vec3f(drape.mean_linear()),
+        };
+        let material = self.bind_material("terrain", &uniform, &view);
+        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material, surface: Surface::Terrain }
+    }
+
+    /// The vertex and index buffers of `mesh` (see [`Uploader::lit_mesh`]).
+    fn vertex_buffers(
+        &mut self,
+        mesh: &Mesh,
+        hlp: Option<(&[u32], &[Sphere])>,
+        implicit: &[[f32; 3]],
+    ) -> (wgpu::Buffer, wgpu::Buffer) {
         let vertices: Vec<Vertex> = (0..mesh.positions.len())
             .map(|i| {
                 let (index, sphere) = match hlp {
@@ -143,9 +180,7 @@ impl<'a> Uploader<'a> {
                 }
             })
             .collect();
-        let (vertices, indices) = self.buffers(bytemuck::cast_slice(&vertices), &mesh.indices);
-        let material = self.material(material, surface, 1.0);
-        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material, surface }
+        self.buffers(bytemuck::cast_slice(&vertices), &mesh.indices)
     }
 
     /// Uploads a vertex and an index buffer.
@@ -211,11 +246,6 @@ impl<'a> Uploader<'a> {
         let alpha_min = shapes.as_ref().map_or(cutoff, |(_, alpha_min)| *alpha_min);
         let texture = shapes.map(|(map, _)| map).or_else(|| material.texture.clone());
         let uniform = SurfaceMaterial::new(material, cutoff, alpha_min, particle_scale);
-        let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("material"),
-            contents: &uniforms::bytes(&uniform),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
         let view = match &texture {
             Some(image) => {
                 let (device, queue, bytes) = (self.device, self.queue, &mut self.bytes);
@@ -228,12 +258,22 @@ impl<'a> Uploader<'a> {
             }
             None => self.white.clone(),
         };
+        self.bind_material(&material.name, &uniform, &view)
+    }
+
+    /// The bind group of a material: its uniform block, texture and the pass's sampler.
+    fn bind_material(&self, label: &str, uniform: &SurfaceMaterial, view: &wgpu::TextureView) -> wgpu::BindGroup {
+        let uniform = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("material"),
+            contents: &uniforms::bytes(uniform),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(&material.name),
+            label: Some(label),
             layout: &self.pass.material_layout,
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(view) },
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&self.pass.sampler) },
             ],
         })

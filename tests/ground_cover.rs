@@ -1,0 +1,192 @@
+//! The ground's land-cover drape (issue 18, SPEC S1): the sample scene's classes read apart in
+//! the sketch and colour styles, class borders are outlined where the style asks, and the
+//! scene file's drape inputs fail with messages that name the file.
+
+mod common;
+
+use common::{gpu, luminance};
+use landsketch::render::presets::preset;
+use landsketch::render::{FrameRequest, Renderer, Style};
+use landsketch::scene::Scene;
+use landsketch::scene::camera::Camera;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+const SIZE: u32 = 256;
+/// Metres across the plan view of the sample scene.
+const PLAN_WIDTH: f32 = 1600.0;
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+/// A style of `preset` without the vegetation, so only the ground is drawn.
+fn ground_only(name: &str) -> Style {
+    Style { visible: false, ..preset(name).expect("preset") }
+}
+
+/// Pixel positions in an image.
+type Pixels = Vec<(u32, u32)>;
+
+/// The sample scene's plan view in `style`, and per land-cover code the pixels whose 3 × 3
+/// neighbourhood lies in that class only (borders left out) and the pixels on a border.
+fn classes_in_plan(
+    scene: &Scene,
+    renderer: &Renderer,
+    style: &Style,
+) -> (image::RgbaImage, BTreeMap<i64, Pixels>, Pixels) {
+    let camera = Camera::plan(0.0, 0.0, 4000.0, PLAN_WIDTH);
+    let image = renderer.render(FrameRequest::new(&camera, style.clone(), SIZE, SIZE)).expect("render").image;
+    let metres = PLAN_WIDTH / SIZE as f32;
+    let class = |px: i64, py: i64| {
+        let x = -PLAN_WIDTH / 2.0 + (px as f32 + 0.5) * metres;
+        let y = PLAN_WIDTH / 2.0 - (py as f32 + 0.5) * metres;
+        scene.terrain.drape.class_at(f64::from(x), f64::from(y)).map(|c| c.code)
+    };
+    let (mut inside, mut borders) = (BTreeMap::<i64, Pixels>::new(), Vec::new());
+    for py in 2..i64::from(SIZE) - 2 {
+        for px in 2..i64::from(SIZE) - 2 {
+            let Some(code) = class(px, py) else { continue };
+            let neighbours: Vec<Option<i64>> = (-1..=1)
+                .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+                .map(|(dx, dy)| class(px + dx, py + dy))
+                .collect();
+            if neighbours.iter().all(|c| *c == Some(code)) {
+                inside.entry(code).or_default().push((px as u32, py as u32));
+            } else {
+                borders.push((px as u32, py as u32));
+            }
+        }
+    }
+    (image, inside, borders)
+}
+
+fn mean_luminance(image: &image::RgbaImage, pixels: &[(u32, u32)]) -> f32 {
+    pixels.iter().map(|&(x, y)| luminance(image.get_pixel(x, y))).sum::<f32>() / pixels.len().max(1) as f32
+}
+
+fn mean_color(image: &image::RgbaImage, pixels: &[(u32, u32)]) -> [f32; 3] {
+    let n = pixels.len().max(1) as f32;
+    [0, 1, 2].map(|c| pixels.iter().map(|&(x, y)| f32::from(image.get_pixel(x, y)[c]) / 255.0).sum::<f32>() / n)
+}
+
+#[test]
+fn the_sample_scenes_land_cover_classes_read_apart_in_every_style() {
+    let scene = Scene::load(&repo("data/boulder/scene.toml")).expect("sample scene");
+    assert_eq!(scene.terrain.drape.classes.len(), 8, "the simplified NLCD table");
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    // 4 forest, 5 shrubland, 6 herbaceous (the table has 3 barren too, which the DEM does not reach).
+    let (sketch, inside, _) = classes_in_plan(&scene, &renderer, &ground_only("full_npr"));
+    for code in [4, 5, 6] {
+        assert!(inside.get(&code).is_some_and(|p| p.len() > 200), "class {code} covers the plan view");
+    }
+    let tone = |code: i64| mean_luminance(&sketch, &inside[&code]);
+    // Sketch: the forest floor is hatched darkly, shrubland in between, herbaceous ground lightest.
+    assert!(tone(4) + 0.2 < tone(6), "forest {} against herbaceous {}", tone(4), tone(6));
+    assert!(tone(4) < tone(5) && tone(5) < tone(6), "shrubland {} between forest and herbaceous", tone(5));
+    for name in ["half_npr", "photorealism"] {
+        let (image, inside, _) = classes_in_plan(&scene, &renderer, &ground_only(name));
+        let (forest, meadow) = (mean_color(&image, &inside[&4]), mean_color(&image, &inside[&6]));
+        let distance = forest.iter().zip(&meadow).map(|(a, b)| (a - b).powi(2)).sum::<f32>().sqrt();
+        assert!(distance > 0.12, "{name}: forest {forest:?} and herbaceous {meadow:?} look alike");
+        // Greener than it is red, and darker than the meadow.
+        assert!(forest[1] > forest[0] && forest[1] < meadow[1], "{name}: forest {forest:?}, herbaceous {meadow:?}");
+    }
+}
+
+#[test]
+fn class_borders_are_outlined_where_the_style_asks() {
+    let scene = Scene::load(&repo("data/boulder/scene.toml")).expect("sample scene");
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    let dark = |image: &image::RgbaImage, pixels: &[(u32, u32)]| {
+        pixels.iter().filter(|&&(x, y)| luminance(image.get_pixel(x, y)) < 0.35).count() as f64 / pixels.len() as f64
+    };
+    let outlined = Style { land_cover_outline: 1.0, ..ground_only("full_npr") };
+    let plain = Style { land_cover_outline: 0.0, ..ground_only("full_npr") };
+    let (with, _, borders) = classes_in_plan(&scene, &renderer, &outlined);
+    let (without, _, _) = classes_in_plan(&scene, &renderer, &plain);
+    assert!(borders.len() > 500, "the plan view crosses class borders");
+    let (a, b) = (dark(&with, &borders), dark(&without, &borders));
+    assert!(a > b + 0.1, "dark border pixels: {a:.3} with outlines, {b:.3} without");
+}
+
+/// A scene file over the DEM `dem` (under the repository's `data/`) with `terrain` added to
+/// its `[terrain]` section, in a temporary directory; paths in `terrain` may use `{data}` for
+/// the repository's `data/`.
+fn scene_on(name: &str, dem: &str, terrain: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("landsketch-ground-cover-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let data = repo("data");
+    let text = format!(
+        "name = \"drape\"\n[terrain]\ndem = \"{}\"\n{}\n[camera]\nposition = [0.0, 0.0]\nyaw = 0.0\n",
+        data.join(dem).display(),
+        terrain.replace("{data}", &data.display().to_string())
+    );
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).expect("write scene");
+    path
+}
+
+/// [`scene_on`] the sample scene's DEM.
+fn scene_with(name: &str, terrain: &str) -> PathBuf {
+    scene_on(name, "boulder/dem.tif", terrain)
+}
+
+fn load_error(name: &str, terrain: &str) -> String {
+    Scene::load(&scene_with(name, terrain)).expect_err("a bad drape").to_string()
+}
+
+#[test]
+fn bad_drapes_are_refused_naming_the_file() {
+    // A class the land cover does not hold.
+    let err = load_error(
+        "unknown",
+        "landcover = \"{data}/boulder/landcover.tif\"\nclasses = \"nlcd_simplified\"\n[terrain.cover.9]\nname = \"quarry\"",
+    );
+    assert!(
+        err.contains("landcover.tif") && err.contains("class 9") && err.contains("its classes are 4, 5, 6"),
+        "{err}"
+    );
+    // A key that is no class code, a stroke kind that does not exist.
+    let err = load_error("key", "[terrain.cover.forest]\ntone = -0.3");
+    assert!(err.contains("terrain.cover.forest") && err.contains("integer code"), "{err}");
+    let err = load_error("strokes", "[terrain.cover.4]\nstrokes = \"zigzag\"");
+    assert!(err.contains("scene.toml") && err.contains("zigzag"), "{err}");
+    // An orthophoto of one band (the DEM itself), one stored plane by plane.
+    let err = load_error("one-band", "orthophoto = \"{data}/boulder/dem.tif\"");
+    assert!(err.contains("dem.tif") && err.contains("3 bands") && err.contains("has 1"), "{err}");
+    let err = load_error("planar", "orthophoto = \"{data}/test/boulder_crop_2band_planar.tif\"");
+    assert!(err.contains("boulder_crop_2band_planar.tif") && err.contains("plane by plane"), "{err}");
+    // A land cover 1000 km away in the same CRS.
+    let lc = landsketch::gis::load_raster(&repo("data/boulder/landcover.tif")).expect("land cover");
+    let far = landsketch::gis::Raster {
+        transform: landsketch::gis::GeoTransform { origin_x: lc.transform.origin_x + 10.0, ..lc.transform },
+        ..lc
+    };
+    let far_path = scene_with("far", "").with_file_name("far.tif");
+    landsketch::gis::write_geotiff_u8(&far_path, &far, None).expect("write far land cover");
+    let err = load_error("far", &format!("landcover = \"{}\"", far_path.display()));
+    assert!(err.contains("far.tif") && err.contains("does not overlap"), "{err}");
+}
+
+#[test]
+fn an_orthophoto_colours_the_ground() {
+    // Three bands over a window of the Boulder DEM (`data/test/README.md`): band 1 the
+    // elevation (over 255: red saturates), bands 2 and 3 scaled to 0..40.
+    let ortho = "orthophoto = \"{data}/test/boulder_crop_3band_pixel.tif\"";
+    let path = scene_on("ortho", "test/boulder_crop_tiled_i16.tif", ortho);
+    let scene = Scene::load(&path).expect("scene with an orthophoto");
+    let drape = &scene.terrain.drape;
+    assert!(drape.width > 1 && drape.classes.is_empty());
+    let (lo, hi) = scene.terrain.bounds();
+    let centre = ((lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0);
+    let col = ((centre.0 - drape.origin[0]) / drape.cell) as usize;
+    let row = ((drape.origin[1] - centre.1) / drape.cell) as usize;
+    let [r, g, b] = drape.colors[row * drape.width + col];
+    assert!(r == 255 && g <= 40 && b <= 40, "orthophoto colour ({r}, {g}, {b})");
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    let camera = Camera::plan(centre.0 as f32, centre.1 as f32, 4000.0, 200.0);
+    let image = renderer.render(FrameRequest::new(&camera, ground_only("photorealism"), 64, 64)).expect("render").image;
+    let p = image.get_pixel(32, 32);
+    assert!(p[0] > 2 * p[1].max(p[2]), "the ground takes the orthophoto's red: {p:?}");
+}
