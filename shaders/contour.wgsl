@@ -37,7 +37,9 @@ fn tone(p: vec2<i32>) -> f32 {
         let steepness = saturate(acos(saturate(n.z)) / 0.78539816);
         light *= 1.0 - post.terrain_slope_tone * steepness;
     }
-    let lum = sqrt(dot(albedo.rgb, vec3<f32>(0.2126, 0.7152, 0.0722)));
+    // The ground's tone comes from its relief and its land-cover class's tone, not from its
+    // drape's colour (the shadows and texture of an orthophoto would print as noise).
+    let lum = select(sqrt(dot(albedo.rgb, vec3<f32>(0.2126, 0.7152, 0.0722))), 1.0, is_terrain(textureLoad(id_tex, p, 0).xy));
     let l = light * mix(1.0, lum, post.albedo_weight);
     var t = saturate((l - post.tone_reference) * post.tone_contrast + post.tone_reference);
     // The land-cover class's tone offset (forest floor dark, meadow light), or paper for a

@@ -13,6 +13,7 @@ use landsketch::render::{FrameRequest, Readback, RenderError, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::Sun;
 use landsketch::scene::camera::Camera;
+use landsketch::scene::cover::Drape;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -144,7 +145,8 @@ fn photorealism_strip_is_a_continuous_progression() {
 /// A bare plain (albedo 0.5, 0.4, 0.3) lit from 30° elevation, seen from 20 m looking down.
 fn lit_plain() -> (Renderer, Camera) {
     let mut scene = trees_on_a_plain(&[]);
-    scene.terrain.albedo = [0.5, 0.4, 0.3];
+    let bounds = scene.terrain.bounds();
+    scene.terrain.set_drape(Drape::plain([0.5, 0.4, 0.3], bounds));
     scene.sun = Sun { azimuth: 180.0, elevation: 30.0 };
     let renderer = Renderer::new(gpu(), &scene).unwrap();
     let camera = Camera { position: [0.0, 0.0, 120.0], pitch: -30.0, ..scene.default_camera };

@@ -130,20 +130,20 @@ impl Kind {
     fn class(self, code: i64, name: &str) -> CoverClass {
         use CoverStrokes as S;
         let (color, tone, strokes, hatch_map, outline) = match self {
-            Kind::Water => (0x7d9fbf, -0.2, S::Ripples, Some(0), true),
+            Kind::Water => (0x7d9fbf, -0.12, S::Ripples, Some(0), true),
             Kind::Ice => (0xf0f3f5, 0.0, S::None, None, true),
             Kind::Built => (0xbcb4aa, 0.0, S::None, None, true),
-            Kind::UrbanGreen => (0xa9bb78, -0.05, S::Style, None, true),
+            Kind::UrbanGreen => (0xa9bb78, 0.0, S::Style, None, true),
             Kind::Barren => (0xcdbd9f, 0.0, S::Style, Some(3), false),
-            Kind::Broadleaf => (0x58763f, -0.32, S::Style, Some(2), true),
-            Kind::Conifer => (0x3f5d3c, -0.38, S::Style, Some(2), true),
-            Kind::MixedForest => (0x4d6a3d, -0.35, S::Style, Some(2), true),
-            Kind::Shrub => (0x939056, -0.14, S::Style, Some(3), true),
-            Kind::Grass => (0xb3b86f, -0.05, S::Style, None, true),
-            Kind::Pasture => (0xa3bd6c, -0.05, S::Style, None, true),
-            Kind::Crops => (0xd4c47c, -0.18, S::Furrows, Some(0), true),
-            Kind::Orchard => (0x8fa65e, -0.2, S::Furrows, Some(3), true),
-            Kind::Wetland => (0x7f9f88, -0.16, S::Ripples, Some(3), true),
+            Kind::Broadleaf => (0x58763f, -0.25, S::Style, None, true),
+            Kind::Conifer => (0x3f5d3c, -0.28, S::Style, None, true),
+            Kind::MixedForest => (0x4d6a3d, -0.26, S::Style, None, true),
+            Kind::Shrub => (0x939056, -0.12, S::Style, Some(3), true),
+            Kind::Grass => (0xb3b86f, -0.03, S::Style, None, true),
+            Kind::Pasture => (0xa3bd6c, -0.03, S::Style, None, true),
+            Kind::Crops => (0xd4c47c, -0.12, S::Furrows, Some(0), true),
+            Kind::Orchard => (0x8fa65e, -0.1, S::Furrows, Some(3), true),
+            Kind::Wetland => (0x7f9f88, -0.1, S::Ripples, Some(3), true),
         };
         let srgb = |shift: u32| f32::from(((color >> shift) & 0xff) as u8) / 255.0;
         CoverClass {

@@ -308,7 +308,7 @@ fn load_drape(
         orthophoto: orthophoto.as_deref().zip(ortho_path.as_deref()),
         classes,
     };
-    cover::Drape::build(sources, &terrain.frame, terrain.bounds(), terrain.albedo)
+    cover::Drape::build(sources, &terrain.frame, terrain.bounds(), config.albedo)
 }
 
 /// A land cover in the scene CRS: a raster reprojected if needed, or GeoJSON polygons

@@ -11,14 +11,13 @@ pub struct Terrain {
     pub dem: Raster,
     pub frame: LocalFrame,
     pub mesh: Mesh,
-    /// Albedo of the ground (linear RGB) where no land-cover class or orthophoto colours it.
-    pub albedo: [f32; 3],
-    /// The colours and land-cover classes laid on the ground; the mesh's uvs address it.
+    /// The colours and land-cover classes laid on the ground (one cell of the albedo without a
+    /// land cover or orthophoto); the mesh's uvs address it.
     pub drape: Drape,
 }
 
 impl Terrain {
-    /// Places `dem` in its local frame (origin at the DEM's extent centre, see
+    /// Places `dem` with the ground albedo `albedo` (linear RGB) in its local frame (origin at the DEM's extent centre, see
     /// [`LocalFrame::for_raster`]) and builds one vertex per cell centre, two triangles per
     /// quad of valid cells; quads touching nodata are left out.
     pub fn new(dem: Raster, albedo: [f32; 3]) -> Result<Terrain, SceneError> {
@@ -71,7 +70,6 @@ impl Terrain {
             mesh: Mesh { uvs: vec![[0.0; 2]; positions.len()], positions, normals, indices },
             dem,
             frame,
-            albedo,
             drape: Drape::plain(albedo, ([0.0; 2], [1.0; 2])),
         };
         terrain.set_drape(Drape::plain(albedo, terrain.bounds()));
