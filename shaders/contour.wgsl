@@ -29,11 +29,15 @@ fn tone(p: vec2<i32>) -> f32 {
     // The terrain's relief tone: its light relative to flat ground's, so level and sunny
     // ground stay paper and slopes turned away from the sun darken (Imhof's shaded relief
     // read as pen-and-ink: Buchin et al. 2011), darkened further by the slope angle up to 45°
-    // (Lehmann's hachure rule) so lit slopes keep sparse indication strokes.
+    // (Lehmann's hachure rule) so lit slopes keep sparse indication strokes. Both from the
+    // normal of the relief exaggerated vertically by `terrain_exaggeration` (the z-factor of a
+    // cartographer's hillshade), so gentle lowland relief reads.
     if is_terrain(textureLoad(id_tex, p, 0).xy) {
         let flat_light = light_from_normal(vec3<f32>(0.0, 0.0, 1.0)).x;
+        let encoded = textureLoad(normal_tex, p, 0).xyz;
+        let n = normalize(vec3<f32>(encoded.xy * post.terrain_exaggeration, encoded.z) + vec3<f32>(0.0, 0.0, 1e-6));
+        light = light_from_normal(n * length(encoded)).x;
         light = mix(light, min(light / max(flat_light, 1e-3), 1.0), post.terrain_relief);
-        let n = normalize(textureLoad(normal_tex, p, 0).xyz + vec3<f32>(0.0, 0.0, 1e-6));
         let steepness = saturate(acos(saturate(n.z)) / 0.78539816);
         light *= 1.0 - post.terrain_slope_tone * steepness;
     }

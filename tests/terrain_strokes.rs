@@ -13,6 +13,7 @@ use landsketch::scene::camera::Camera;
 use landsketch::scene::cover::{CoverClassConfig, CoverStrokes, Drape, DrapeSources, resolve_classes};
 use landsketch::scene::terrain::Terrain;
 use landsketch::scene::{Scene, Sun};
+use std::path::Path;
 
 /// A bare terrain of `n` × `n` cells of `cell` metres with heights `height(x, y)` (x east, y
 /// north, metres from the centre), lit by `sun`.
@@ -263,4 +264,47 @@ fn terrain_strokes_stay_on_the_ground_when_the_camera_moves() {
     );
     // Not by drawing fewer strokes: the ink stays comparable.
     assert!((a.terrain_ink / b.terrain_ink - 1.0).abs() < 0.25, "ink {} against {}", a.terrain_ink, b.terrain_ink);
+}
+
+#[test]
+fn the_lidar_villages_relief_reads_from_above_once_exaggerated() {
+    // The real 1 m lidar DTM of Kingston St Mary (tests only, ../shared/data/SOURCES.md),
+    // stored in whole metres: dequantized on load, its valleys and banks drawn from 400 m up.
+    let dtm = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kingston_st_mary/dtm_1m.tif");
+    if !dtm.exists() {
+        eprintln!("../shared/data/kingston_st_mary not present; skipped");
+        return;
+    }
+    let dem = landsketch::gis::load_raster(&dtm).expect("lidar DTM");
+    let stored = dem.clone();
+    let terrain = Terrain::new(dem, [1.0; 3]).expect("terrain");
+    // Every height within half a metre of the file's, and the terraces gone: no height is a
+    // whole number any more in most cells.
+    let moved = terrain.dem.data.iter().zip(&stored.data).filter(|(z, v)| (*z - *v).abs() > 1e-6).count();
+    assert!(terrain.dem.data.iter().zip(&stored.data).all(|(z, v)| (z - v).abs() <= 0.5 + 1e-9));
+    assert!(moved > stored.data.len() / 2, "only {moved} cells smoothed");
+    let scene = Scene {
+        name: "Kingston St Mary".into(),
+        terrain,
+        species: Vec::new(),
+        layers: Vec::new(),
+        sun: Sun { azimuth: 165.0, elevation: 35.0 },
+        default_camera: Camera::perspective([0.0, -700.0, 400.0], 0.0, -35.0, 60.0),
+        about: Default::default(),
+    };
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    let camera = Camera::perspective([0.0, -700.0, 400.0], 0.0, -35.0, 60.0);
+    let ink = |exaggeration: f32| {
+        let style = Style {
+            terrain_exaggeration: exaggeration,
+            ..landsketch::render::presets::preset("full_npr").expect("preset")
+        };
+        let image = renderer.render(FrameRequest::new(&camera, style, 256, 192)).expect("render").image;
+        common::fraction(&image, |l| l < 0.5)
+    };
+    let (plain, exaggerated) = (ink(1.0), ink(4.0));
+    assert!(
+        exaggerated > 0.03 && exaggerated > 3.0 * plain,
+        "ink {plain:.3} as it is, {exaggerated:.3} exaggerated 4×"
+    );
 }

@@ -4,6 +4,7 @@
 
 pub mod ascii_grid;
 pub mod crs;
+pub mod dequantize;
 pub mod error;
 pub mod frame;
 pub mod geotiff;

@@ -440,6 +440,10 @@ style_fields! {
     /// black whatever its light): Lehmann's hachure rule "the steeper, the darker", so gentle
     /// relief in full sun (valleys, banks, field edges) still gets sparse strokes.
     terrain_slope_tone: f32 = 0.4, 0..=1;
+    /// Vertical exaggeration of the relief for the terrain's tone (the z-factor of a
+    /// hillshade): 1 as it is; 3–5 let the gentle slopes, banks and valleys of lowland country
+    /// read in the strokes.
+    terrain_exaggeration: f32 = 1.0, 1..=10;
     /// How dark the borders between the ground's land-cover classes are drawn (with the
     /// contours, scaled by `contour_strength`), 0 (none) to 1: the outline of a wood, a field
     /// or a lake on the ground (`[terrain] landcover`).

@@ -3,7 +3,7 @@
 use super::SceneError;
 use super::cover::Drape;
 use super::mesh::Mesh;
-use crate::gis::{LocalFrame, Raster};
+use crate::gis::{LocalFrame, Raster, dequantize};
 
 /// The terrain of a scene: its DEM, the frame the DEM is placed in and the triangle mesh.
 #[derive(Debug, Clone)]
@@ -20,8 +20,18 @@ impl Terrain {
     /// Places `dem` with the ground albedo `albedo` (linear RGB) in its local frame (origin at the DEM's extent centre, see
     /// [`LocalFrame::for_raster`]) and builds one vertex per cell centre, two triangles per
     /// quad of valid cells; quads touching nodata are left out.
-    pub fn new(dem: Raster, albedo: [f32; 3]) -> Result<Terrain, SceneError> {
+    /// A DEM stored in whole units on cells less than ten units wide (a lidar DTM in 8-bit
+    /// metres) is first smoothed within half a unit of its values
+    /// ([`crate::gis::dequantize`]), so its terraces do not print as speckles of strokes.
+    pub fn new(mut dem: Raster, albedo: [f32; 3]) -> Result<Terrain, SceneError> {
         let frame = LocalFrame::for_raster(&dem)?;
+        let cell_metres = (dem.transform.cell_width * frame.scale().0).min(dem.transform.cell_height * frame.scale().1);
+        if let Some(step) = dequantize::quantization_step(&dem)
+            && step > 0.1 * cell_metres
+        {
+            dequantize::dequantize(&mut dem, step);
+            tracing::info!(step, cell_metres, "DEM heights smoothed within half their quantization step");
+        }
         let (w, h) = (dem.width, dem.height);
         if w < 2 || h < 2 {
             return Err(SceneError::Invalid(format!(

@@ -73,6 +73,8 @@ gpu_block! {
         pub terrain_relief: f32,
         /// Terrain darkening with steepness (0..1).
         pub terrain_slope_tone: f32,
+        /// Vertical exaggeration of the relief for the terrain's tone (1..10).
+        pub terrain_exaggeration: f32,
         /// Ink of the borders between land-cover classes (0..1).
         pub land_cover_outline: f32,
         /// Ink colour (sRGB).
@@ -141,6 +143,7 @@ impl PostStyle {
             terrain_tile: style.terrain_tile(),
             terrain_relief: style.terrain_relief,
             terrain_slope_tone: style.terrain_slope_tone,
+            terrain_exaggeration: style.terrain_exaggeration,
             land_cover_outline: style.land_cover_outline,
             ink: Vec3f(style.ink),
             paper: Vec3f(style.paper),
