@@ -295,10 +295,9 @@ fn the_lidar_villages_relief_reads_from_above_once_exaggerated() {
     let renderer = Renderer::new(gpu(), &scene).expect("renderer");
     let camera = Camera::perspective([0.0, -700.0, 400.0], 0.0, -35.0, 60.0);
     let ink = |exaggeration: f32| {
-        let style = Style {
-            terrain_exaggeration: exaggeration,
-            ..landsketch::render::presets::preset("full_npr").expect("preset")
-        };
+        // The strokes alone (the crease lines are tested on their own).
+        let full_npr = landsketch::render::presets::preset("full_npr").expect("preset");
+        let style = Style { terrain_exaggeration: exaggeration, terrain_creases: 0.0, ..full_npr };
         let image = renderer.render(FrameRequest::new(&camera, style, 256, 192)).expect("render").image;
         common::fraction(&image, |l| l < 0.5)
     };
@@ -307,4 +306,56 @@ fn the_lidar_villages_relief_reads_from_above_once_exaggerated() {
         exaggerated > 0.03 && exaggerated > 3.0 * plain,
         "ink {plain:.3} as it is, {exaggerated:.3} exaggerated 4×"
     );
+}
+
+#[test]
+fn a_valley_bottom_gets_a_crease_line_that_stays_on_it_when_the_camera_moves() {
+    // A V-shaped valley along x = 0, falling 0.5 m per 10 m cell to the south, sides 1:5.
+    let scene =
+        terrain_scene(61, 10.0, Sun { azimuth: 135.0, elevation: 45.0 }, |x, y| 100.0 + 0.2 * x.abs() + 0.05 * y);
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    // Only the lines: no hatching, no silhouettes.
+    let lines = |creases: f32| Style {
+        hatch_strength: 0.0,
+        silhouette_strength: 0.0,
+        terrain_creases: creases,
+        terrain_crease_area: 1.0,
+        ..Style::default()
+    };
+    let (w, h) = (256u32, 192u32);
+    let axis: Vec<glam::Vec3> = (-20..=10)
+        .map(|k| {
+            let y = k as f32 * 10.0;
+            glam::Vec3::new(0.0, y, scene.terrain.height_at(0.0, f64::from(y)).expect("on the DEM") as f32)
+        })
+        .collect();
+    // From the south, 60 m up, and after a dolly, a pan and a climb.
+    for camera in [
+        Camera::perspective([0.0, -320.0, 150.0], 0.0, -20.0, 60.0),
+        Camera::perspective([30.0, -260.0, 170.0], -6.0, -24.0, 60.0),
+    ] {
+        let on_axis = |style: Style| {
+            let image = renderer.render(FrameRequest::new(&camera, style, w, h)).expect("render").image;
+            let (mut seen, mut inked) = (0, 0);
+            for p in &axis {
+                let (x, y) = camera.point_pixel(*p, w, h);
+                if x < 2.0 || y < 2.0 || x > w as f32 - 3.0 || y > h as f32 - 3.0 {
+                    continue;
+                }
+                seen += 1;
+                // The darkest pixel within one pixel of the projected point.
+                let darkest = (-1..=1)
+                    .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+                    .map(|(dx, dy)| luminance(image.get_pixel((x as i32 + dx) as u32, (y as i32 + dy) as u32)))
+                    .fold(1.0f32, f32::min);
+                inked += usize::from(darkest < 0.6);
+            }
+            (seen, inked)
+        };
+        let (seen, with) = on_axis(lines(1.0));
+        let (_, without) = on_axis(lines(0.0));
+        assert!(seen >= 15, "{seen} points of the axis in view");
+        assert!(with * 10 >= seen * 9, "the line covers {with} of {seen} axis points");
+        assert!(without * 2 <= seen, "without crease lines {without} of {seen} axis points are inked");
+    }
 }

@@ -6,6 +6,7 @@
 //! terrain's chunks with their own levels (`terrain_lod`).
 
 pub mod cache;
+pub mod creases;
 pub mod hlp;
 pub mod implicit;
 pub mod leaf_shape;

@@ -60,9 +60,10 @@ impl LayerCode {
     /// `shaders/post_common.wgsl`).
     pub fn wgsl_constants() -> String {
         format!(
-            "const STYLE_SLOTS: u32 = {STYLE_SLOTS}u;\nconst LAYER_SHIFT: u32 = {}u;\nconst LAYER_BACKGROUND: u32 = {}u;\n\n",
+            "const STYLE_SLOTS: u32 = {STYLE_SLOTS}u;\nconst LAYER_SHIFT: u32 = {}u;\nconst LAYER_BACKGROUND: u32 = {}u;\nconst LAYER_TERRAIN: u32 = {}u;\n\n",
             Self::SHIFT,
-            Self::BACKGROUND.0
+            Self::BACKGROUND.0,
+            Self::TERRAIN.0
         )
     }
 }

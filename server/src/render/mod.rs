@@ -8,6 +8,7 @@ pub mod bake;
 pub mod bind_layouts;
 pub mod coherence;
 pub mod compare;
+pub mod creases;
 pub mod device;
 pub mod gbuffer;
 pub mod ground_cover;

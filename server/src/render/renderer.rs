@@ -5,6 +5,7 @@
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
 use super::compare::{Compare, Split};
 use super::gbuffer::{GeometryFrame, GeometryPass, LayerStyle, layer_uniforms, render_target};
+use super::layer_code::LayerCode;
 use super::marks::{GlyphAtlas, Marks, Pin};
 use super::parametrization::ReferenceCoords;
 use super::passes::pipeline::FrameContext;
@@ -384,7 +385,7 @@ impl Renderer {
             mapped_at_creation: false,
         });
         let inputs = self.copy.bind_group(device, &uniform, &[wgpu::BindingResource::TextureView(&source)]);
-        let context = FrameContext { device, spec: Specialization::default(), depth: None, marks: 0 };
+        let context = FrameContext { device, spec: Specialization::default(), depth: None, marks: 0, creases: 0 };
         self.scoped(|| {
             (0..runs.max(1) + 1)
                 .map(|_| {
@@ -454,6 +455,7 @@ impl Renderer {
             Resource::HatchColors => self.projection.hatch_colors().as_entire_binding(),
             Resource::Glyphs => view(&self.glyph_texture),
             Resource::CoverClasses => self.scene.cover_buffer().as_entire_binding(),
+            Resource::CreaseLines => self.scene.crease_lines().0.as_entire_binding(),
             Resource::Marks => frame.marks.map(wgpu::Buffer::as_entire_binding).ok_or(RenderError::Gpu {
                 stage: "frame",
                 message: "the marks block is read while no marks are drawn".into(),
@@ -493,7 +495,11 @@ impl Renderer {
         let data_runs = ProjectionPass::writes(data, layer_tams);
         // The pins and the split line, over the composed image.
         let split_x = split.and_then(|s| s.x);
-        let marks = (!request.pins.is_empty() || split_x.is_some())
+        // The terrain's crease lines, when its style draws them (the marks block carries the
+        // camera for both passes).
+        let (_, crease_count) = self.scene.crease_lines();
+        let creases = if params[LayerCode::TERRAIN.slot()].terrain_creases > 0.0 { crease_count } else { 0 };
+        let marks = (!request.pins.is_empty() || split_x.is_some() || creases > 0)
             .then(|| Marks::new(camera, (width, height), request.pins, split_x, &self.glyphs));
         // Pipelines specialised for what this frame's styles and data need.
         let context = FrameContext {
@@ -501,6 +507,7 @@ impl Renderer {
             spec: Specialization::for_frame(&params, data.has_hatch_colors(), data_runs),
             depth: Some(&targets.gbuffer.depth),
             marks: marks.as_ref().map_or(0, |m| m.instances()),
+            creases,
         };
         let post_buffers: Vec<wgpu::Buffer> = (0..sams.len())
             .map(|group| {
@@ -552,7 +559,8 @@ impl Renderer {
                 When::Always => true,
                 When::Prefilter => style.contour_prefilter,
                 When::DataLayers => data_runs,
-                When::Marks => post.marks.is_some(),
+                When::Marks => context.marks > 0,
+                When::Creases => context.creases > 0,
             };
             if !runs {
                 post.bypass.extend(decl.bypass.map(|to| (decl.output, to)));

@@ -444,6 +444,13 @@ style_fields! {
     /// hillshade): 1 as it is; 3–5 let the gentle slopes, banks and valleys of lowland country
     /// read in the strokes.
     terrain_exaggeration: f32 = 1.0, 1..=10;
+    /// How dark the terrain's crease lines are drawn — valley bottoms and ridge crests, fixed
+    /// to the ground (`prep::creases`) — with the contours (scaled by `contour_strength`), 0
+    /// (none) to 1.
+    terrain_creases: f32 = 0.7, 0..=1;
+    /// The smallest area in hectares a valley (or, of the inverted terrain, a ridge) drains for
+    /// its crease line to be drawn: larger values keep only the main valleys and crests.
+    terrain_crease_area: f32 = 20.0, 0.2..=100000;
     /// How dark the borders between the ground's land-cover classes are drawn (with the
     /// contours, scaled by `contour_strength`), 0 (none) to 1: the outline of a wood, a field
     /// or a lake on the ground (`[terrain] landcover`).

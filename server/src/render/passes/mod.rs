@@ -12,6 +12,7 @@ pub mod pipeline;
 pub mod post_block;
 pub mod targets;
 
+use crate::render::creases::CreaseLine;
 use crate::render::ground_cover::CoverStyle;
 use crate::render::layer_code::LayerCode;
 use crate::render::marks::Marks;
@@ -107,6 +108,8 @@ pub enum Resource {
     Glyphs,
     /// The land-cover classes of the ground ([`crate::render::ground_cover::CoverStyle`]).
     CoverClasses,
+    /// The terrain's crease lines ([`crate::render::creases::CreaseLine`]).
+    CreaseLines,
 }
 
 /// How a shader reads a binding.
@@ -145,6 +148,7 @@ impl Resource {
             Resource::DataBlock => BindingKind::Uniform("DataBlock"),
             Resource::Marks => BindingKind::Uniform("Marks"),
             Resource::CoverClasses => BindingKind::Storage("CoverStyle"),
+            Resource::CreaseLines => BindingKind::Storage("CreaseLine"),
         }
     }
 
@@ -155,6 +159,7 @@ impl Resource {
             Resource::DataBlock => Declarations::of::<DataBlock>(),
             Resource::Marks => Declarations::of::<Marks>(),
             Resource::CoverClasses => Declarations::of::<CoverStyle>(),
+            Resource::CreaseLines => Declarations::of::<CreaseLine>(),
             _ => String::new(),
         }
     }
@@ -180,6 +185,8 @@ pub enum When {
     DataLayers,
     /// When the frame has pins or a split line to draw.
     Marks,
+    /// When the terrain's style draws crease lines and the scene has some.
+    Creases,
 }
 
 /// What a pass draws.
@@ -187,9 +194,18 @@ pub enum When {
 pub enum Draws {
     /// The full-screen triangle (`vs_fullscreen`), replacing what its output held.
     Fullscreen,
-    /// Six vertices per instance from the named vertex entry point, one instance per mark of
-    /// the frame ([`Marks::instances`]), blended over the output it keeps.
-    Marks(&'static str),
+    /// Six vertices per instance from the named vertex entry point, one instance per item
+    /// of `Instances`, blended over the output it keeps.
+    Instanced(&'static str, Instances),
+}
+
+/// What the instances of a [`Draws::Instanced`] pass are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Instances {
+    /// The frame's marks ([`Marks::instances`]).
+    Marks,
+    /// The scene's crease lines.
+    Creases,
 }
 
 /// One post-processing pass, declared once.
@@ -414,11 +430,30 @@ pub const MARKS: PostPassDecl = PostPassDecl {
     runs: When::Marks,
     bypass: None,
     per_art_group: false,
-    draws: Draws::Marks("vs_marks"),
+    draws: Draws::Instanced("vs_marks", Instances::Marks),
+};
+
+/// The creases pass (`shaders/creases.wgsl`): the terrain's valley bottoms and ridge crests
+/// ([`crate::render::creases`]) as pen lines over the composed image, before the pins.
+pub const CREASES: PostPassDecl = PostPassDecl {
+    name: "creases",
+    shader: include_str!("../../../../shaders/creases.wgsl"),
+    entry_points: &[("fs_creases", Gate::None)],
+    inputs: &[
+        input("marks", Resource::Marks),
+        target("depth_tex", Target::LinearDepth),
+        input("creases", Resource::CreaseLines),
+    ],
+    output: Target::Output,
+    clear: TRANSPARENT,
+    runs: When::Creases,
+    bypass: None,
+    per_art_group: false,
+    draws: Draws::Instanced("vs_creases", Instances::Creases),
 };
 
 /// The post passes of a frame, in the order they run after the geometry pass.
-pub const POST_PASSES: [&PostPassDecl; 6] = [&PREFILTER, &CONTOUR, &TONE_BLUR, &DATA, &COMPOSE, &MARKS];
+pub const POST_PASSES: [&PostPassDecl; 7] = [&PREFILTER, &CONTOUR, &TONE_BLUR, &DATA, &COMPOSE, &CREASES, &MARKS];
 
 /// A plain copy of the output (`shaders/copy.wgsl`): the cheapest possible full-screen pass,
 /// the floor the benchmark compares the NPR passes with; not part of a frame.

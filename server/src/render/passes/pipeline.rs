@@ -2,7 +2,7 @@
 //! declaration's inputs, its shader compiled once, and pipelines specialised per frame.
 
 use super::post_block::PostStyle;
-use super::{BindingKind, Draws, PostPassDecl};
+use super::{BindingKind, Draws, Instances, PostPassDecl};
 use crate::render::bind_layouts::{storage_entry, texture_entry, uniform_layout_entry};
 use crate::render::gbuffer::DEPTH_FORMAT;
 use std::collections::HashMap;
@@ -30,7 +30,7 @@ impl BindingKind {
                 count: None,
             },
             BindingKind::Uniform(_) => uniform_layout_entry(binding),
-            BindingKind::Storage(_) => storage_entry(binding, wgpu::ShaderStages::FRAGMENT),
+            BindingKind::Storage(_) => storage_entry(binding, wgpu::ShaderStages::VERTEX_FRAGMENT),
         }
     }
 }
@@ -139,8 +139,10 @@ pub struct FrameContext<'a> {
     pub spec: Specialization,
     /// The G-buffer depth (needed by gated passes only).
     pub depth: Option<&'a wgpu::TextureView>,
-    /// Instances of a [`Draws::Marks`] pass ([`crate::render::marks::Marks::instances`]).
+    /// Instances of the marks pass ([`crate::render::marks::Marks::instances`]).
     pub marks: u32,
+    /// Crease lines the creases pass draws.
+    pub creases: u32,
 }
 
 /// How a full-screen draw is limited to part of the image by the G-buffer's depth (reverse Z:
@@ -190,7 +192,7 @@ fn post_pipeline(
 ) -> wgpu::RenderPipeline {
     let (vertex, blend) = match draws {
         Draws::Fullscreen => ("vs_fullscreen", None),
-        Draws::Marks(vertex) => (vertex, Some(wgpu::BlendState::ALPHA_BLENDING)),
+        Draws::Instanced(vertex, _) => (vertex, Some(wgpu::BlendState::ALPHA_BLENDING)),
     };
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
@@ -311,7 +313,8 @@ impl PostPass {
         let depth = if gated { frame.depth } else { None };
         let (vertices, instances, clear) = match self.decl.draws {
             Draws::Fullscreen => (3, 1, clear),
-            Draws::Marks(_) => (6, frame.marks, false),
+            Draws::Instanced(_, Instances::Marks) => (6, frame.marks, false),
+            Draws::Instanced(_, Instances::Creases) => (6, frame.creases, false),
         };
         let load = if clear { wgpu::LoadOp::Clear(self.decl.clear) } else { wgpu::LoadOp::Load };
         let pipelines: Vec<&wgpu::RenderPipeline> = pipelines.iter().collect();

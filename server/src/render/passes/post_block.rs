@@ -75,6 +75,10 @@ gpu_block! {
         pub terrain_slope_tone: f32,
         /// Vertical exaggeration of the relief for the terrain's tone (1..10).
         pub terrain_exaggeration: f32,
+        /// Ink of the terrain's crease lines (0..1, times the contour strength).
+        pub terrain_creases: f32,
+        /// Hectares a crease line drains at least to be drawn.
+        pub terrain_crease_area: f32,
         /// Ink of the borders between land-cover classes (0..1).
         pub land_cover_outline: f32,
         /// Ink colour (sRGB).
@@ -144,6 +148,8 @@ impl PostStyle {
             terrain_relief: style.terrain_relief,
             terrain_slope_tone: style.terrain_slope_tone,
             terrain_exaggeration: style.terrain_exaggeration,
+            terrain_creases: style.terrain_creases * style.contour_strength,
+            terrain_crease_area: style.terrain_crease_area,
             land_cover_outline: style.land_cover_outline,
             ink: Vec3f(style.ink),
             paper: Vec3f(style.paper),

@@ -18,6 +18,7 @@ mod upload;
 pub use cull::{DrawStats, LayerDraw, VisibleSet, frustum_planes};
 
 use super::bake::Baker;
+use super::creases::crease_buffer;
 use super::gbuffer::{GeometryPass, Instance, Surface, object_id};
 use super::ground_cover::cover_buffer;
 use super::layer_code::LayerCode;
@@ -132,6 +133,8 @@ pub struct SceneGpu {
     instance_buffer: wgpu::Buffer,
     /// The land-cover classes of the terrain's drape ([`crate::render::ground_cover`]).
     cover: wgpu::Buffer,
+    /// The terrain's crease lines ([`crate::render::creases`]) and their count.
+    creases: (wgpu::Buffer, u32),
     /// The reference coordinates of a frame, grown when a frame needs more.
     reference_buffer: std::sync::Mutex<wgpu::Buffer>,
     /// GPU memory of everything above.
@@ -151,6 +154,9 @@ impl SceneGpu {
         let mut up = Uploader::new(device, queue, pass, disk);
         let terrain_lod = TerrainLod::build(&scene.terrain, TERRAIN_CHUNK_CELLS, TERRAIN_LEVELS);
         let terrain = up.terrain(&terrain_lod.mesh, &scene.terrain.drape);
+        let segments = crate::prep::creases::crease_lines(&scene.terrain);
+        info!(segments = segments.len(), "terrain crease lines");
+        let creases = crease_buffer(device, &segments);
         let baker = Baker::new(device, &pass.material_layout);
         let mut species = Vec::with_capacity(scene.species.len());
         let mut plant_boards = Vec::with_capacity(scene.species.len());
@@ -241,6 +247,7 @@ impl SceneGpu {
             masses,
             instance_buffer,
             cover: cover_buffer(device, &scene.terrain.drape),
+            creases,
             reference_buffer: std::sync::Mutex::new(reference_buffer(device, 1)),
             gpu_bytes,
         })
@@ -274,6 +281,11 @@ impl SceneGpu {
     /// The storage buffer of the drape's land-cover classes (`cover` in the shaders).
     pub fn cover_buffer(&self) -> &wgpu::Buffer {
         &self.cover
+    }
+
+    /// The storage buffer of the terrain's crease lines and how many it holds.
+    pub fn crease_lines(&self) -> (&wgpu::Buffer, u32) {
+        (&self.creases.0, self.creases.1)
     }
 
     /// Estimated GPU memory of the scene in bytes (see [`super::Renderer::gpu_bytes`]).

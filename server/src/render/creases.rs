@@ -1,0 +1,44 @@
+//! The terrain's crease lines ([`crate::prep::creases`]) on the GPU: one [`CreaseLine`] per
+//! segment in a storage buffer that the creases pass (`shaders/creases.wgsl`, declared as
+//! [`super::passes::CREASES`]) draws as pen lines of constant width on screen, fixed to the
+//! ground, hidden where nearer geometry covers them.
+
+use super::uniforms::{Vec3f, gpu_block};
+use crate::prep::creases::CreaseSegment;
+use wgpu::util::DeviceExt;
+
+gpu_block! {
+    /// One segment of a crease line as the creases pass reads it.
+    pub struct CreaseLine {
+        /// One end, scene metres.
+        pub a: Vec3f,
+        /// The area it drains, hectares.
+        pub hectares: f32,
+        /// The other end.
+        pub b: Vec3f,
+        /// [`crate::prep::creases::CreaseKind`]: 0 valley, 1 ridge.
+        pub kind: u32,
+    }
+}
+
+/// The storage buffer of `segments` (one zeroed segment when there are none: a binding
+/// cannot be empty) and their count.
+pub fn crease_buffer(device: &wgpu::Device, segments: &[CreaseSegment]) -> (wgpu::Buffer, u32) {
+    let mut lines: Vec<CreaseLine> = segments
+        .iter()
+        .map(|s| CreaseLine { a: s.a.into(), hectares: (s.area / 10_000.0) as f32, b: s.b.into(), kind: s.kind as u32 })
+        .collect();
+    let count = lines.len() as u32;
+    if lines.is_empty() {
+        lines.push(CreaseLine::default());
+    }
+    let mut bytes = encase::StorageBuffer::new(Vec::<u8>::new());
+    // A growable Vec always takes a runtime-sized array of blocks encase lays out.
+    bytes.write(&lines).expect("crease lines fit a growable buffer");
+    let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("crease lines"),
+        contents: &bytes.into_inner(),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    (buffer, count)
+}
