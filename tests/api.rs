@@ -331,8 +331,9 @@ async fn error_messages_bound_the_client_input_they_echo() {
     ] {
         let body = assert_error(post(&url, body.to_string()).await, status, code, None).await;
         let message = body["error"]["message"].as_str().expect("message");
+        // The echo is cut; the rest of a message (serde's list of the style's fields) may be long.
         assert!(
-            message.len() < 1000 && message.contains('…'),
+            !message.contains(&"p".repeat(100)) && message.len() < 4000 && message.contains('…'),
             "{} bytes: {}",
             message.len(),
             message.chars().take(200).collect::<String>()
