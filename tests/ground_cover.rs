@@ -190,3 +190,32 @@ fn an_orthophoto_colours_the_ground() {
     let p = image.get_pixel(32, 32);
     assert!(p[0] > 2 * p[1].max(p[2]), "the ground takes the orthophoto's red: {p:?}");
 }
+
+#[test]
+fn the_draped_ground_up_a_slope_and_in_plan_matches_its_references() {
+    // The gallery's views (guide, "Rendering"): up a slope (`--pos 0,300 --yaw 90 --pitch 4`)
+    // and the plan view (`--plan 0,0,2000`), in full_npr, half_npr and photorealism; the
+    // default and bird's-eye views are `tests/reference/styles/preset_*.png` and
+    // `tests/reference/sample_above.png`.
+    let scene = Scene::load(&repo("data/boulder/scene.toml")).expect("sample scene");
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    let ground = scene.terrain.height_at(0.0, 300.0).expect("on the DEM") as f32;
+    let up_slope = Camera { position: [0.0, 300.0, ground + 1.7], yaw: 90.0, pitch: 4.0, ..scene.default_camera };
+    let plan = Camera::plan(0.0, 0.0, 4000.0, 2000.0);
+    let (w, h) = (192u32, 144u32);
+    let mut sheet = image::RgbaImage::new(w * 3, h * 2);
+    for (row, camera) in [up_slope, plan].iter().enumerate() {
+        for (col, name) in ["full_npr", "half_npr", "photorealism"].iter().enumerate() {
+            let style = preset(name).expect("preset");
+            let image = renderer.render(FrameRequest::new(camera, style, w, h)).expect("render").image;
+            image::imageops::replace(&mut sheet, &image, i64::from(w) * col as i64, i64::from(h) * row as i64);
+        }
+    }
+    // Ink on the sketch of the slope, colour in the photoreal plan.
+    let sketch = image::imageops::crop_imm(&sheet, 0, 0, w, h).to_image();
+    assert!(common::fraction(&sketch, |l| l < 0.5) > 0.02, "the slope carries strokes");
+    let photo = image::imageops::crop_imm(&sheet, 2 * w, h, w, h).to_image();
+    let green = photo.pixels().filter(|p| p[1] > p[0] && p[1] > p[2]).count() as f32 / (w * h) as f32;
+    assert!(green > 0.3, "the photoreal plan is {green:.2} green");
+    common::assert_matches_reference(&sheet, &repo("tests/reference/ground_views.png"), 0.03);
+}
