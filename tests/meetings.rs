@@ -417,7 +417,7 @@ async fn a_tour_flies_through_the_viewpoints_and_followers_see_its_captions() {
 
     // Bad tours are refused; stop without a tour is a conflict.
     for (bad, code) in [
-        (json!({"type": "tour", "action": "start", "viewpoints": []}), "invalid_parameter"),
+        (json!({"type": "tour", "action": "start", "viewpoints": [], "from": 99}), "invalid_parameter"),
         (json!({"type": "tour", "action": "start", "viewpoints": [{"camera": {"pitch": 95}}]}), "invalid_parameter"),
         (json!({"type": "tour", "action": "start", "viewpoints": viewpoints, "from": 3}), "invalid_parameter"),
         (json!({"type": "tour", "action": "next"}), "conflict"),
@@ -431,6 +431,24 @@ async fn a_tour_flies_through_the_viewpoints_and_followers_see_its_captions() {
     send(&mut follower, json!({"type": "tour", "action": "start", "viewpoints": viewpoints})).await;
     let (error, _) = until(&mut follower, "error").await;
     assert_eq!(error["code"], "conflict");
+}
+
+#[tokio::test]
+async fn a_tour_without_viewpoints_plays_the_planners_viewpoints() {
+    // The sample scene's three [[viewpoints]], in their order, with their captions.
+    let server = shared();
+    let mut socket = connect(server, VIEW).await;
+    next_frame(&mut socket).await;
+    send(&mut socket, json!({"type": "tour", "action": "start", "leg_s": 0.3, "dwell_s": 0.2})).await;
+    let (flying, _) = until(&mut socket, "tour").await;
+    assert_eq!((flying["event"].as_str(), flying["count"].as_u64()), (Some("flying"), Some(3)), "{flying}");
+    assert_eq!(flying["name"], "Planned woodland");
+    let (arrived, _) = until(&mut socket, "tour").await;
+    assert_eq!(arrived["event"], "arrived");
+    assert_eq!(arrived["caption"], "The new oak woodland seen at eye height from the slope east of it");
+    send(&mut socket, json!({"type": "tour", "action": "stop"})).await;
+    let (stopped, _) = until(&mut socket, "tour").await;
+    assert_eq!(stopped["event"], "stopped");
 }
 
 #[tokio::test]

@@ -602,7 +602,7 @@ impl<'a> Session<'a> {
                 Event::Message(Some(Ok(message))) => {
                     self.last_message = now;
                     match message {
-                        Message::Text(text) => self.handle_text(text.as_str(), now),
+                        Message::Text(text) => self.handle_text(text.as_str(), now).await,
                         Message::Binary(_) => Some(self.reject(ApiError::BadRequest {
                             parameter: None,
                             message: "binary messages are not accepted; send JSON text".into(),
@@ -689,7 +689,7 @@ impl<'a> Session<'a> {
     }
 
     /// Applies one control message; returns the message to answer with, if any.
-    fn handle_text(&mut self, text: &str, now: Instant) -> Option<ServerMessage> {
+    async fn handle_text(&mut self, text: &str, now: Instant) -> Option<ServerMessage> {
         let message = match serde_json::from_str::<ClientMessage>(text) {
             Ok(message) => message,
             Err(e) => {
@@ -734,7 +734,7 @@ impl<'a> Session<'a> {
             ClientMessage::Join { code } => reply(self.join(&code)),
             ClientMessage::Detach => reply(self.detach()),
             ClientMessage::Rejoin => reply(self.rejoin()),
-            ClientMessage::Tour(control) => reply(self.tour_control(control, now)),
+            ClientMessage::Tour(control) => reply(self.tour_control(control, now).await),
             ClientMessage::Data { mappings, time } => {
                 DataRequest::resolve(&mappings, time.as_deref(), self.state.store()).map_err(ApiError::from).map(
                     |data| {

@@ -52,7 +52,8 @@ pub struct TourViewpoint {
 pub struct TourControl {
     /// `start`, `stop`, `next` or `previous`.
     pub action: TourAction,
-    /// `start`: the viewpoints in order (1 to 100).
+    /// `start`: the viewpoints in order (1 to 100); none: the planner's viewpoints (the scene
+    /// file's, then the admin API's, as `GET /api/viewpoints` lists them).
     #[serde(default)]
     pub viewpoints: Vec<TourViewpoint>,
     /// `start`: the viewpoint to fly to first (default 0).
@@ -130,9 +131,9 @@ fn ground(ready: &Ready) -> impl Fn(f32, f32) -> Option<f32> + '_ {
 
 impl Session<'_> {
     /// Applies a `tour` control.
-    pub(super) fn tour_control(&mut self, control: TourControl, now: Instant) -> Result<ServerMessage, ApiError> {
+    pub(super) async fn tour_control(&mut self, control: TourControl, now: Instant) -> Result<ServerMessage, ApiError> {
         if control.action == TourAction::Start {
-            return self.start_tour(control, now);
+            return self.start_tour(control, now).await;
         }
         if control.action == TourAction::Stop {
             return self.stop_tour().ok_or_else(|| ApiError::Conflict("no tour is playing".into()));
@@ -153,7 +154,18 @@ impl Session<'_> {
         Ok(play.message(TourEvent::Flying, target))
     }
 
-    fn start_tour(&mut self, control: TourControl, now: Instant) -> Result<ServerMessage, ApiError> {
+    async fn start_tour(&mut self, mut control: TourControl, now: Instant) -> Result<ServerMessage, ApiError> {
+        if control.viewpoints.is_empty() {
+            control.viewpoints = crate::api::viewpoints::all(self.state)
+                .await?
+                .into_iter()
+                .map(|listed| TourViewpoint {
+                    camera: listed.viewpoint.camera,
+                    name: Some(listed.viewpoint.name),
+                    caption: Some(listed.viewpoint.caption).filter(|c| !c.is_empty()),
+                })
+                .collect();
+        }
         let count = control.viewpoints.len();
         if !(1..=MAX_TOUR_STOPS).contains(&count) {
             return Err(ApiError::invalid(
