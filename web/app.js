@@ -53,6 +53,8 @@ const app = {
   opened: false,
   probed: false,
   mode: 'citizen',
+  /** The planner's viewpoints (`GET /api/viewpoints`): what a tour plays when there are any. */
+  viewpoints: [],
   /** The accepted-control count when the server last refused one: a newer frame clears its message. */
   refusedAt: null,
 };
@@ -278,6 +280,7 @@ async function loadViewpoints() {
   } catch {
     viewpoints = [];
   }
+  app.viewpoints = viewpoints;
   $('viewpoints-section').hidden = viewpoints.length === 0;
   showViewpoints($('viewpoints'), viewpoints, (viewpoint) => {
     setCamera(viewpointCamera(viewpoint.camera ?? {}, app.base));
@@ -340,7 +343,10 @@ function toggleTour() {
   }
   app.touring = true;
   $('tour').setAttribute('aria-pressed', 'true');
-  app.connection.send({ type: 'tour', action: 'start', viewpoints: tourViewpoints(), dwell_s: 3 });
+  // The planner's viewpoints when there are any (the server plays them with their captions),
+  // else a tour the browser makes: the start, an overview and the plan.
+  const planned = (app.viewpoints ?? []).length > 0;
+  app.connection.send({ type: 'tour', action: 'start', ...(planned ? {} : { viewpoints: tourViewpoints() }), dwell_s: 3 });
 }
 
 /** A `tour` message: the caption of the viewpoint reached, or the end of the tour. */

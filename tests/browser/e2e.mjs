@@ -393,7 +393,7 @@ try {
     await linked(page, 'preset', (v) => v === null);
   });
 
-  await check('a tour flies through the start, an overview and the plan with captions', async () => {
+  await check("a tour flies through the planner's three viewpoints with their captions", async () => {
     const before = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
     await page.locator('#tour').click();
     await page.waitForFunction(() => /\(\d of 3\)/.test(document.getElementById('tour-caption').textContent), null, { timeout: WAIT });
