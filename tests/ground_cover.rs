@@ -219,3 +219,16 @@ fn the_draped_ground_up_a_slope_and_in_plan_matches_its_references() {
     assert!(green > 0.3, "the photoreal plan is {green:.2} green");
     common::assert_matches_reference(&sheet, &repo("tests/reference/ground_views.png"), 0.03);
 }
+
+#[test]
+fn a_16_bit_orthophoto_is_scaled_to_the_drapes_bytes() {
+    // Full red, half green, no blue in 16-bit samples, on the grid of a window of the DEM.
+    let grid = landsketch::gis::load_raster(&repo("data/test/boulder_crop_tiled_i16.tif")).expect("grid");
+    let band = |v: f64| landsketch::gis::Raster { data: vec![v; grid.data.len()], nodata: None, ..grid.clone() };
+    let ortho = scene_with("ortho16", "").with_file_name("ortho16.tif");
+    landsketch::gis::write_geotiff_rgb16(&ortho, &[band(65535.0), band(32768.0), band(0.0)]).expect("write");
+    let path = scene_on("ortho16", "test/boulder_crop_tiled_i16.tif", &format!("orthophoto = \"{}\"", ortho.display()));
+    let drape = Scene::load(&path).expect("scene with a 16-bit orthophoto").terrain.drape;
+    let inside = drape.colors[(drape.height / 2) * drape.width + drape.width / 2];
+    assert_eq!(inside, [255, 128, 0]);
+}

@@ -17,7 +17,7 @@ use std::io::Cursor;
 use std::path::Path;
 
 use tiff::decoder::{Decoder, DecodingResult, Limits};
-use tiff::encoder::colortype::{ColorType, Gray8, Gray32Float};
+use tiff::encoder::colortype::{ColorType, Gray8, Gray32Float, RGB16};
 use tiff::encoder::compression::DeflateLevel;
 use tiff::encoder::{Compression, TiffEncoder, TiffValue};
 use tiff::tags::{PhotometricInterpretation, SampleFormat, Tag};
@@ -344,6 +344,20 @@ pub fn decoded_bytes<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>)
 /// or four u16 bands), so that a raster at the cell limit still decodes.
 pub fn decoding_budget(max_cells: u64) -> u64 {
     max_cells.saturating_mul(8)
+}
+
+/// Whether a TIFF's first image holds unsigned 16-bit samples (as 16-bit orthophotos do).
+pub fn is_uint16(path: &Path) -> Result<bool, GisError> {
+    let file = std::fs::File::open(path).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
+    let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
+    let mut decoder = Decoder::new(std::io::BufReader::new(file)).map_err(tiff_err)?;
+    let mut first = |tag| -> Result<Option<u16>, GisError> {
+        let values = decoder.find_tag(tag).map_err(tiff_err)?;
+        Ok(values.map(|v| v.into_u16_vec()).transpose().map_err(tiff_err)?.and_then(|v| v.first().copied()))
+    };
+    let bits = first(Tag::BitsPerSample)?.unwrap_or(1);
+    let format = first(Tag::SampleFormat)?.unwrap_or(SampleFormat::Uint.to_u16());
+    Ok(bits == 16 && format == SampleFormat::Uint.to_u16())
 }
 
 /// Reads band 1 of a GeoTIFF with its georeferencing, CRS, nodata and palette.
@@ -744,6 +758,21 @@ pub fn write_geotiff_u8(path: &Path, raster: &Raster, palette: Option<&[[u8; 3]]
         None => encode::<Gray8>(raster, &data, nodata_text, None),
     };
     finish_write(path, encoded)
+}
+
+/// Writes an RGB GeoTIFF of 16-bit samples (pixel-interleaved; an orthophoto as survey
+/// agencies deliver it) from three bands on `bands[0]`'s grid; values are clamped to
+/// 0..65535 and nodata cells written as 0.
+pub fn write_geotiff_rgb16(path: &Path, bands: &[Raster; 3]) -> Result<(), GisError> {
+    for band in bands {
+        check_data_len(path, band)?;
+    }
+    let sample = |band: &Raster, i: usize| {
+        let v = band.data.get(i).copied().filter(|&v| band.is_valid(v)).unwrap_or(0.0);
+        v.clamp(0.0, 65535.0).round() as u16
+    };
+    let data: Vec<u16> = (0..bands[0].data.len()).flat_map(|i| bands.iter().map(move |b| sample(b, i))).collect();
+    finish_write(path, encode::<RGB16>(&bands[0], &data, None, None))
 }
 
 /// Writes a 32-bit float GeoTIFF. Nodata cells are written as the nodata value (as `f32`), or

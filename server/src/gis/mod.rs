@@ -17,7 +17,10 @@ pub use ascii_grid::read_ascii_grid;
 pub use crs::Crs;
 pub use error::GisError;
 pub use frame::LocalFrame;
-pub use geotiff::{GeoKeyValues, read_geokeys, read_geotiff, read_geotiff_bands, write_geotiff_f32, write_geotiff_u8};
+pub use geotiff::{
+    GeoKeyValues, read_geokeys, read_geotiff, read_geotiff_bands, write_geotiff_f32, write_geotiff_rgb16,
+    write_geotiff_u8,
+};
 pub use raster::{Extent, GeoTransform, MAX_CELLS, Raster, load_raster};
 pub use reproject::{CrsDefinition, ReprojectError, Transformer};
 pub use vector::{SceneFeature, SceneTarget, VectorError, read_vector};

@@ -353,7 +353,7 @@ pub struct Drape {
 pub struct DrapeSources<'a> {
     /// The land cover (class codes) and its file.
     pub landcover: Option<(&'a Raster, &'a Path)>,
-    /// The orthophoto's red, green and blue bands and its file.
+    /// The orthophoto's red, green and blue bands (0..255) and its file.
     pub orthophoto: Option<(&'a [Raster], &'a Path)>,
     /// The classes of [`resolve_classes`] and the codes the scene file declared itself.
     pub classes: (Vec<CoverClass>, BTreeSet<i64>),
@@ -414,15 +414,6 @@ impl Drape {
         let (classes, declared) = sources.classes;
         let index: HashMap<i64, u8> = classes.iter().enumerate().map(|(i, c)| (c.code, (i + 1) as u8)).collect();
         let plain = albedo.map(srgb_byte);
-        // 16-bit orthophotos (any value above 255) are scaled from 0..65535 to bytes.
-        let ortho_scale = match sources.orthophoto {
-            Some((bands, _))
-                if bands.iter().take(3).flat_map(|b| b.data.iter()).any(|&v| v > 255.0 && v.is_finite()) =>
-            {
-                255.0 / 65535.0
-            }
-            _ => 1.0,
-        };
         let mut class_of = vec![0u8; width * height];
         let mut colors = vec![plain; width * height];
         let mut seen = BTreeSet::new();
@@ -447,7 +438,7 @@ impl Drape {
                     let rgb: Option<Vec<f64>> = bands.iter().take(3).map(|b| b.sample_bilinear(cx, cy)).collect();
                     if let Some(rgb) = rgb {
                         covered.1 += 1;
-                        colors[at] = [0, 1, 2].map(|i| (rgb[i] * ortho_scale).clamp(0.0, 255.0).round() as u8);
+                        colors[at] = [0, 1, 2].map(|i| rgb[i].clamp(0.0, 255.0).round() as u8);
                     }
                 }
             }
@@ -625,16 +616,6 @@ mod tests {
         let err = Drape::build(sources, &frame(), ([0.0, 0.0], [20.0, 10.0]), [0.5; 3]).expect_err("unknown class");
         assert!(err.to_string().contains("lc.tif: terrain.cover declares class 9"), "{err}");
         assert!(err.to_string().contains("its classes are 4, 6"), "{err}");
-    }
-
-    #[test]
-    fn a_16_bit_orthophoto_is_scaled_to_bytes() {
-        let band = |v: f64| Raster { nodata: None, ..raster(2, 1, 10.0, vec![v, v]) };
-        let bands = [band(65535.0), band(32768.0), band(0.0)];
-        let classes = resolve_classes(None, &BTreeMap::new()).expect("classes");
-        let sources = DrapeSources { landcover: None, orthophoto: Some((&bands, Path::new("ortho16.tif"))), classes };
-        let drape = Drape::build(sources, &frame(), ([0.0, 0.0], [20.0, 10.0]), [0.5; 3]).expect("drape");
-        assert_eq!(drape.colors[0], [255, 128, 0]);
     }
 
     #[test]

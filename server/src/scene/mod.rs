@@ -291,7 +291,13 @@ fn load_drape(
                 .map(CrsDefinition::parse)
                 .transpose()
                 .map_err(|e| SceneError::Invalid(format!("terrain.orthophoto_crs: {e}")))?;
-            let bands = gis::read_geotiff_bands(path)?;
+            let mut bands = gis::read_geotiff_bands(path)?;
+            // Unsigned 16-bit orthophotos are scaled from 0..65535 to the drape's bytes.
+            if gis::geotiff::is_uint16(path)? {
+                for value in bands.iter_mut().flat_map(|band| band.data.iter_mut()) {
+                    *value *= 255.0 / 65535.0;
+                }
+            }
             if !(3..=4).contains(&bands.len()) {
                 return Err(SceneError::Invalid(format!(
                     "{}: an orthophoto needs 3 bands (red, green, blue) or 4 (with alpha); this file has {}",
