@@ -35,12 +35,23 @@ fn classes_in_plan(
     renderer: &Renderer,
     style: &Style,
 ) -> (image::RgbaImage, BTreeMap<i64, Pixels>, Pixels) {
-    let camera = Camera::plan(0.0, 0.0, 4000.0, PLAN_WIDTH);
+    classes_in_plan_at(scene, renderer, style, [0.0, 0.0], PLAN_WIDTH)
+}
+
+/// [`classes_in_plan`] of a plan view centred on `centre`, `width` metres across.
+fn classes_in_plan_at(
+    scene: &Scene,
+    renderer: &Renderer,
+    style: &Style,
+    centre: [f32; 2],
+    width: f32,
+) -> (image::RgbaImage, BTreeMap<i64, Pixels>, Pixels) {
+    let camera = Camera::plan(centre[0], centre[1], 4000.0, width);
     let image = renderer.render(FrameRequest::new(&camera, style.clone(), SIZE, SIZE)).expect("render").image;
-    let metres = PLAN_WIDTH / SIZE as f32;
+    let metres = width / SIZE as f32;
     let class = |px: i64, py: i64| {
-        let x = -PLAN_WIDTH / 2.0 + (px as f32 + 0.5) * metres;
-        let y = PLAN_WIDTH / 2.0 - (py as f32 + 0.5) * metres;
+        let x = centre[0] - width / 2.0 + (px as f32 + 0.5) * metres;
+        let y = centre[1] + width / 2.0 - (py as f32 + 0.5) * metres;
         scene.terrain.drape.class_at(f64::from(x), f64::from(y)).map(|c| c.code)
     };
     let (mut inside, mut borders) = (BTreeMap::<i64, Pixels>::new(), Vec::new());
@@ -231,4 +242,47 @@ fn a_16_bit_orthophoto_is_scaled_to_the_drapes_bytes() {
     let drape = Scene::load(&path).expect("scene with a 16-bit orthophoto").terrain.drape;
     let inside = drape.colors[(drape.height / 2) * drape.width + drape.width / 2];
     assert_eq!(inside, [255, 128, 0]);
+}
+
+#[test]
+fn the_lidar_villages_buildings_read_as_a_land_cover_class() {
+    // The real Kingston St Mary DTM with its OpenStreetMap building footprints (tests only,
+    // ../shared/data/SOURCES.md) as one class of the ground: built-up ground without strokes,
+    // outlined.
+    let shared = repo("../shared/data/kingston_st_mary");
+    if !shared.join("dtm_1m.tif").exists() {
+        eprintln!("../shared/data/kingston_st_mary not present; skipped");
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("landsketch-ground-cover-{}-village", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let text = format!(
+        "name = \"Kingston St Mary\"\n[terrain]\ndem = \"{dtm}\"\nlandcover = \"{buildings}\"\nclasses = \"nlcd_simplified\"\n\
+         [terrain.landcover_options]\nclass = 2\ncell = 1.0\n[camera]\nposition = [0.0, 0.0]\nyaw = 0.0\n",
+        dtm = shared.join("dtm_1m.tif").display(),
+        buildings = shared.join("osm_buildings.wgs84.geojson").display()
+    );
+    std::fs::write(dir.join("scene.toml"), text).expect("write scene");
+    let scene = Scene::load(&dir.join("scene.toml")).expect("the village with its buildings");
+    let drape = &scene.terrain.drape;
+    let built: Vec<usize> = (0..drape.class_of.len()).filter(|&i| drape.class_of[i] > 0).collect();
+    // 401 footprints of some 100 m² each.
+    assert!(built.len() > 20_000, "{} building cells", built.len());
+    let centre = {
+        let sum =
+            built.iter().fold((0.0, 0.0), |(x, y), &i| (x + (i % drape.width) as f64, y + (i / drape.width) as f64));
+        let n = built.len() as f64;
+        [drape.origin[0] + (sum.0 / n + 0.5) * drape.cell, drape.origin[1] - (sum.1 / n + 0.5) * drape.cell]
+            .map(|v| v as f32)
+    };
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    let style = Style { land_cover_outline: 1.0, terrain_creases: 0.0, ..preset("full_npr").expect("preset") };
+    let (image, inside, borders) = classes_in_plan_at(&scene, &renderer, &style, centre, 300.0);
+    assert!(inside.get(&2).is_some_and(|p| p.len() > 100) && borders.len() > 200, "the village is in the view");
+    let dark = |pixels: &[(u32, u32)]| {
+        pixels.iter().filter(|&&(x, y)| luminance(image.get_pixel(x, y)) < 0.35).count() as f64 / pixels.len() as f64
+    };
+    // Footprints are paper inside (no strokes) and outlined.
+    assert!(dark(&inside[&2]) < 0.05, "{:.3} of the building pixels are dark", dark(&inside[&2]));
+    assert!(dark(&borders) > 0.3, "{:.3} of the border pixels are dark", dark(&borders));
 }

@@ -199,11 +199,14 @@ pub struct LandcoverOptions {
     /// Polygons: cell size in metres of the rasterized land cover.
     #[serde(default = "default_landcover_cell")]
     pub cell: f64,
+    /// Polygons: the class of every polygon, instead of a property (e.g. building footprints
+    /// exported without a class).
+    pub class: Option<u32>,
 }
 
 impl Default for LandcoverOptions {
     fn default() -> Self {
-        LandcoverOptions { crs: None, property: default_class_property(), cell: default_landcover_cell() }
+        LandcoverOptions { crs: None, property: default_class_property(), cell: default_landcover_cell(), class: None }
     }
 }
 

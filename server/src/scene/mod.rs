@@ -335,7 +335,12 @@ fn load_landcover(
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if matches!(ext.as_deref(), Some("geojson" | "json")) {
         let target = SceneTarget { crs: scene, frame: &terrain.frame };
-        let features = gis::read_vector(path, crs.as_ref(), target)?;
+        let mut features = gis::read_vector(path, crs.as_ref(), target)?;
+        if let Some(class) = opts.class {
+            for feature in &mut features {
+                feature.properties.insert(opts.property.clone(), serde_json::Value::from(class));
+            }
+        }
         let (lo, hi) = terrain.bounds();
         Ok(gis::vector::rasterize_labels(&features, &opts.property, opts.cell, lo, hi, &terrain.frame, path)?)
     } else {
