@@ -892,6 +892,7 @@ function setupLanguage() {
   select.value = currentLanguage();
   select.addEventListener('change', () => {
     setLanguage(select.value);
+    if (app.art?.list) app.art.refresh();
     if (app.status) showStatus(app.status);
     showWelcome();
     showPlanState();

@@ -8,14 +8,15 @@
 
 import { deleteArtMap, getBlob, getJSON, putArtMap } from './api.js';
 import { decodePng, encodePng, Pixels } from './png.js';
+import { t } from './i18n.js';
 
-/** Per kind: its style field, its name in the panel and what choosing it does. */
+/** Per kind: its style field, its name in the panel and the label of choosing it (`web/i18n.js`). */
 const KINDS = {
-  tam: { field: 'hatch_map', name: 'TAM', use: 'hatching' },
-  sam: { field: 'silhouette_map', name: 'SAM', use: 'silhouettes' },
+  tam: { field: 'hatch_map', name: 'TAM', use: 'art.useTam' },
+  sam: { field: 'silhouette_map', name: 'SAM', use: 'art.useSam' },
 };
-/** A SAM's channels: one stroke style each. */
-const SAM_STYLES = ['R — thin', 'G — medium', 'B — broad', 'A — heavy'];
+/** A SAM's channels: one stroke style each (`art.sam0` … `art.sam3`). */
+const SAM_CHANNELS = 4;
 /** Pixels a keyboard step of the pen moves. */
 const PEN_STEP = 8;
 
@@ -226,7 +227,7 @@ export class ArtMapsPanel {
     const brush = $('art-brush');
     brush.addEventListener('input', () => {
       this.painter.brush = Number(brush.value);
-      $('art-brush-value').textContent = `${brush.value} px`;
+      $('art-brush-value').textContent = t('art.px', { n: brush.value });
     });
     this.painter.brush = Number(brush.value);
     $('art-paint-map').addEventListener('change', () => this.loadPainter());
@@ -254,7 +255,7 @@ export class ArtMapsPanel {
     try {
       list = await getJSON('/api/artmaps');
     } catch (error) {
-      status(this.status, 'error', `Cannot list the art maps: ${reason(error)}`);
+      status(this.status, 'error', t('art.listFailed', { reason: reason(error) }));
       return;
     }
     if (ticket !== this.loading) return;
@@ -262,9 +263,13 @@ export class ArtMapsPanel {
     this.version += 1;
     for (const kind of Object.keys(KINDS)) this.showKind(kind, list[`${kind}s`]);
     const shape = list.tam_shape;
-    $('art-shape').textContent = `A TAM is a grey PNG of ${shape.levels} tone levels of ${shape.size} × ${shape.size} side by side `
-      + `(${shape.width} × ${shape.height}, lightest first, white paper); a SAM an RGBA PNG with one stroke style per channel `
-      + `(R thin … A heavy, ink coverage), row 0 on the contour. At most ${Math.round(list.max_bytes / 2 ** 20)} MiB.`;
+    $('art-shape').textContent = t('art.shape', {
+      levels: shape.levels,
+      size: shape.size,
+      width: shape.width,
+      height: shape.height,
+      mib: Math.round(list.max_bytes / 2 ** 20),
+    });
     this.fillTargets(list);
     this.showChosen();
     await this.loadPainter();
@@ -281,21 +286,22 @@ export class ArtMapsPanel {
       const label = `${name} ${map.index}`;
       const img = Object.assign(document.createElement('img'), {
         src: `${map.url}?v=${this.version}`,
-        alt: kind === 'tam' ? `${label}: ${map.levels} tone levels, lightest first` : `${label}: stroke styles in its channels`,
+        alt: kind === 'tam' ? t('art.altTam', { label, levels: map.levels }) : t('art.altSam', { label }),
         width: map.width,
         height: map.height,
       });
-      const meta = Object.assign(document.createElement('span'), { className: 'meta', textContent: `${label} · ${map.source}` });
+      const source = t(`art.source.${map.source}`);
+      const meta = Object.assign(document.createElement('span'), { className: 'meta', textContent: `${label} · ${source}` });
       const row = document.createElement('div');
       row.className = 'row';
-      const choose = Object.assign(document.createElement('button'), { type: 'button', className: 'small choose', textContent: 'Use' });
-      choose.setAttribute('aria-label', `Use ${label} for ${use}`);
+      const choose = Object.assign(document.createElement('button'), { type: 'button', className: 'small choose', textContent: t('art.use') });
+      choose.setAttribute('aria-label', t(use, { label }));
       choose.addEventListener('click', () => {
         this.onChoose(field, map.index);
         this.showChosen();
       });
-      const paint = Object.assign(document.createElement('button'), { type: 'button', className: 'small', textContent: 'Paint' });
-      paint.setAttribute('aria-label', `Paint strokes into ${label}`);
+      const paint = Object.assign(document.createElement('button'), { type: 'button', className: 'small', textContent: t('art.paintButton') });
+      paint.setAttribute('aria-label', t('art.paintLabel', { label }));
       paint.addEventListener('click', () => {
         $('art-paint-map').value = `${kind}:${map.index}`;
         this.loadPainter();
@@ -307,9 +313,9 @@ export class ArtMapsPanel {
         const reset = Object.assign(document.createElement('button'), {
           type: 'button',
           className: 'small danger reset',
-          textContent: map.has_default ? 'Reset' : 'Remove',
+          textContent: t(map.has_default ? 'art.reset' : 'art.remove'),
         });
-        reset.setAttribute('aria-label', map.has_default ? `Reset ${label} to the generated map` : `Remove ${label}`);
+        reset.setAttribute('aria-label', t(map.has_default ? 'art.resetLabel' : 'art.removeLabel', { label }));
         reset.addEventListener('click', () => this.reset(kind, map, label));
         row.append(reset);
       }
@@ -342,21 +348,24 @@ export class ArtMapsPanel {
       const maps = list[`${kind}s`];
       for (const map of maps) {
         paintMap.append(new Option(`${name} ${map.index}`, `${kind}:${map.index}`));
-        target.append(new Option(`Replace ${name} ${map.index}`, `${kind}:${map.index}`));
+        target.append(new Option(t('art.replace', { label: `${name} ${map.index}` }), `${kind}:${map.index}`));
       }
-      target.append(new Option(`Add ${name} ${maps.length}`, `${kind}:${maps.length}`));
+      target.append(new Option(t('art.add', { label: `${name} ${maps.length}` }), `${kind}:${maps.length}`));
     }
     if ([...paintMap.options].some((o) => o.value === painted)) paintMap.value = painted;
     if ([...target.options].some((o) => o.value === aimed)) target.value = aimed;
     const levels = $('art-paint-level');
     const chosenLevel = levels.value;
-    levels.replaceChildren(...Array.from({ length: list.tam_shape.levels }, (_, i) => new Option(
-      `${i + 1}${i === 0 ? ' (lightest)' : ''}${i === list.tam_shape.levels - 1 ? ' (darkest)' : ''}`,
-      String(i),
-    )));
+    const last = list.tam_shape.levels - 1;
+    levels.replaceChildren(...Array.from({ length: last + 1 }, (_, i) => {
+      const key = i === 0 ? 'art.lightest' : i === last ? 'art.darkest' : null;
+      return new Option(key ? t(key, { n: i + 1 }) : String(i + 1), String(i));
+    }));
     if (chosenLevel) levels.value = chosenLevel;
     const channel = $('art-paint-channel');
-    if (!channel.options.length) channel.append(...SAM_STYLES.map((s, i) => new Option(s, String(i))));
+    const chosenChannel = channel.value;
+    channel.replaceChildren(...Array.from({ length: SAM_CHANNELS }, (_, i) => new Option(t(`art.sam${i}`), String(i))));
+    if (chosenChannel) channel.value = chosenChannel;
   }
 
   /** Loads the map chosen for painting. */
@@ -375,10 +384,9 @@ export class ArtMapsPanel {
       this.painter.layer = Number($(kind === 'tam' ? 'art-paint-level' : 'art-paint-channel').value);
       this.painter.load(key, base, tile);
       $('art-canvas').dataset.map = key;
-      $('art-canvas').setAttribute('aria-label', `Paint canvas on ${KINDS[kind].name} ${index}: drag to draw strokes; `
-        + 'with the keyboard, the arrow keys draw from the pen, Home moves the pen to the centre');
+      $('art-canvas').setAttribute('aria-label', t('art.canvasOn', { label: `${KINDS[kind].name} ${index}` }));
     } catch (error) {
-      status(this.paintStatus, 'error', `Cannot load ${KINDS[kind].name} ${index}: ${reason(error)}`);
+      status(this.paintStatus, 'error', t('art.loadFailed', { label: `${KINDS[kind].name} ${index}`, reason: reason(error) }));
     }
   }
 
@@ -387,20 +395,20 @@ export class ArtMapsPanel {
     const painter = this.painter;
     if (!painter.base) return;
     if (!painter.strokes) {
-      status(this.paintStatus, 'error', 'Paint some strokes first.');
+      status(this.paintStatus, 'error', t('art.nothing'));
       return;
     }
     const [kind, index] = parseKey(painter.key);
     const button = $('art-apply');
     button.disabled = true;
-    status(this.paintStatus, 'busy', 'Sending…');
+    status(this.paintStatus, 'busy', t('art.sending'));
     try {
       await putArtMap(kind, index, await encodePng(painter.result()));
       painter.clear();
-      status(this.paintStatus, 'ok', `${KINDS[kind].name} ${index} updated; the view is drawn with it.`);
+      status(this.paintStatus, 'ok', t('art.updated', { label: `${KINDS[kind].name} ${index}` }));
       await this.refresh();
     } catch (error) {
-      status(this.paintStatus, 'error', `The server refused the map: ${reason(error)}`);
+      status(this.paintStatus, 'error', t('art.refused', { reason: reason(error) }));
     } finally {
       button.disabled = false;
     }
@@ -411,19 +419,19 @@ export class ArtMapsPanel {
     const node = $('art-upload-status');
     const file = $('art-upload-file').files[0];
     if (!file) {
-      status(node, 'error', 'Choose a PNG file first.');
+      status(node, 'error', t('art.chooseFile'));
       return;
     }
     const [kind, index] = parseKey($('art-upload-target').value);
     const submit = $('art-upload-submit');
     submit.disabled = true;
-    status(node, 'busy', 'Uploading…');
+    status(node, 'busy', t('upload.busy'));
     try {
       const info = await putArtMap(kind, index, file);
-      status(node, 'ok', `Stored as ${KINDS[kind].name} ${info.index}.`);
+      status(node, 'ok', t('art.stored', { label: `${KINDS[kind].name} ${info.index}` }));
       await this.refresh();
     } catch (error) {
-      status(node, 'error', `The server refused the map: ${reason(error)}`);
+      status(node, 'error', t('art.refused', { reason: reason(error) }));
     } finally {
       submit.disabled = false;
     }
@@ -431,13 +439,13 @@ export class ArtMapsPanel {
 
   /** Restores a generated map or removes an added one. */
   async reset(kind, map, label) {
-    status(this.status, 'busy', `Resetting ${label}…`);
+    status(this.status, 'busy', t('art.resetting', { label }));
     try {
       await deleteArtMap(kind, map.index);
-      status(this.status, 'ok', `${label} ${map.has_default ? 'reset to the generated map' : 'removed'}.`);
+      status(this.status, 'ok', t(map.has_default ? 'art.resetDone' : 'art.removed', { label }));
       await this.refresh();
     } catch (error) {
-      status(this.status, 'error', `Cannot reset ${label}: ${reason(error)}`);
+      status(this.status, 'error', t('art.resetFailed', { label, reason: reason(error) }));
     }
   }
 }
