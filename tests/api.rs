@@ -110,6 +110,14 @@ async fn health_scene_metrics_and_openapi_describe_the_server() {
         ["existing", "planned"]
     );
     assert!(layers.iter().all(|l| l["plants"].as_u64().is_some_and(|n| n > 0)), "{scene}");
+    // The ground's land-cover classes present in the scene, for the legend.
+    let ground: Vec<(&str, &str)> = scene["ground"]
+        .as_array()
+        .expect("ground")
+        .iter()
+        .map(|g| (g["name"].as_str().unwrap_or_default(), g["color"].as_str().unwrap_or_default()))
+        .collect();
+    assert_eq!(ground, [("forest", "#3f5d3c"), ("shrubland", "#939056"), ("herbaceous", "#b3b86f")]);
     assert_eq!(scene["default_camera"]["yaw"], 268.0);
     assert!(scene["extent"]["min"][0].as_f64().unwrap_or(0.0) < scene["extent"]["max"][0].as_f64().unwrap_or(0.0));
     assert_eq!(scene["sun"]["azimuth"], 165.0);

@@ -907,6 +907,21 @@ function showWelcome() {
   $('welcome-description').textContent = about.description ?? '';
   $('welcome-plan').textContent = about.plan_summary ?? '';
   $('welcome-plan').hidden = !about.plan_summary;
+  showGround();
+}
+
+/** The land-cover classes on the ground as rows of the legend: their colour and name. */
+function showGround() {
+  const rows = (app.scene.ground ?? []).map((ground) => {
+    const li = Object.assign(document.createElement('li'), { className: 'ground-class' });
+    const swatch = Object.assign(document.createElement('span'), { className: 'swatch' });
+    swatch.style.background = ground.color;
+    swatch.setAttribute('aria-hidden', 'true');
+    li.append(swatch, Object.assign(document.createElement('span'), { textContent: t('legend.ground', { name: ground.name }) }));
+    return li;
+  });
+  $('legend-ground').replaceChildren(...rows);
+  $('legend-ground').hidden = rows.length === 0;
 }
 
 function setupConnection() {

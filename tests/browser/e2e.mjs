@@ -275,6 +275,8 @@ try {
     assert.equal(await page.locator('body').getAttribute('data-mode'), 'citizen');
     assert.match(await page.locator('#welcome-title').textContent(), /Boulder/);
     assert.match(await page.locator('#welcome-plan').textContent(), /woodland/);
+    assert.equal(await page.locator('#legend-ground li').count(), 3, 'the ground\'s three land-cover classes in the legend');
+    assert.match(await page.locator('#legend-ground').textContent(), /Ground: forest/);
     assert.ok(await page.locator('#hint').isVisible(), 'first-use hints on how to move');
     await shot(page, 'citizen');
     await page.locator('#hint-close').click();

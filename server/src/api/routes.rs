@@ -14,6 +14,7 @@ use crate::render::{RenderError, Style};
 use crate::scene::VegetationLayer;
 use crate::scene::camera::Camera;
 use crate::scene::config::AboutConfig;
+use crate::scene::cover::CoverClass;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
@@ -71,6 +72,24 @@ pub struct Extent {
     pub max: [f64; 2],
 }
 
+/// One land-cover class on the ground in `GET /api/scene`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct GroundClassInfo {
+    /// Its code in the land cover.
+    pub code: i64,
+    /// What it is called (the scene file's or the classification's name).
+    pub name: String,
+    /// Its colour in the colour styles, `#rrggbb`.
+    pub color: String,
+}
+
+impl From<&CoverClass> for GroundClassInfo {
+    fn from(class: &CoverClass) -> Self {
+        let [r, g, b] = class.color.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+        GroundClassInfo { code: class.code, name: class.name.clone(), color: format!("#{r:02x}{g:02x}{b:02x}") }
+    }
+}
+
 /// One vegetation layer.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct LayerInfo {
@@ -119,6 +138,9 @@ pub struct SceneInfo {
     pub extent: Extent,
     /// Vegetation layers.
     pub layers: Vec<LayerInfo>,
+    /// The land-cover classes on the ground (`[terrain] landcover`), for the legend; empty
+    /// without a land cover.
+    pub ground: Vec<GroundClassInfo>,
     /// Plant species.
     pub species: Vec<String>,
     /// The default camera.
@@ -199,6 +221,7 @@ pub async fn scene(State(state): State<AppState>) -> Result<Json<SceneInfo>, Api
         extent: Extent { min, max },
         about: scene.about.clone(),
         layers: scene.layers.iter().map(LayerInfo::from).collect(),
+        ground: scene.terrain.drape.present_classes().into_iter().map(GroundClassInfo::from).collect(),
         species: scene.species.iter().map(|s| s.name.clone()).collect(),
         default_camera: CameraInfo::from(&scene.default_camera),
         sun: SunInfo { azimuth: scene.sun.azimuth, elevation: scene.sun.elevation },

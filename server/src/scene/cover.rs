@@ -482,6 +482,17 @@ impl Drape {
         [u as f32, v as f32]
     }
 
+    /// The classes some cell of the drape holds, in table order (the ground's legend).
+    pub fn present_classes(&self) -> Vec<&CoverClass> {
+        let mut present = vec![false; self.classes.len()];
+        for &i in &self.class_of {
+            if i > 0 {
+                present[usize::from(i) - 1] = true;
+            }
+        }
+        self.classes.iter().zip(present).filter(|(_, p)| *p).map(|(c, _)| c).collect()
+    }
+
     /// The class at scene point `(x, y)`, if the drape has one there.
     pub fn class_at(&self, x: f64, y: f64) -> Option<&CoverClass> {
         let col = ((x - self.origin[0]) / self.cell).floor();
