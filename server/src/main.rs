@@ -289,6 +289,17 @@ fn main() -> Result<()> {
                 scene.terrain.dem.height,
                 scene.terrain.mesh.triangle_count(),
             );
+            let drape = &scene.terrain.drape;
+            if drape.width > 1 || drape.height > 1 {
+                println!("drape      {}x{} cells of {:.1} m", drape.width, drape.height, drape.cell);
+            }
+            for class in drape.present_classes() {
+                let [r, g, b] = class.color.map(|c| (c * 255.0).round() as u8);
+                println!(
+                    "ground     {:>4} {:<24} #{r:02x}{g:02x}{b:02x} tone {:+.2}",
+                    class.code, class.name, class.tone
+                );
+            }
             let crs = scene.terrain.dem.crs;
             let e = scene.terrain.dem.extent();
             println!("crs        {crs}");
