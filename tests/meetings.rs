@@ -452,6 +452,33 @@ async fn a_tour_without_viewpoints_plays_the_planners_viewpoints() {
 }
 
 #[tokio::test]
+async fn a_tour_viewpoint_brings_its_look() {
+    let server = shared();
+    let mut socket = connect(server, VIEW).await;
+    next_frame(&mut socket).await;
+    // An unknown preset is refused when the tour starts, naming the viewpoint.
+    let bad = json!([{"camera": {"position": [205, 185]}, "preset": "watercolour"}]);
+    send(&mut socket, json!({"type": "tour", "action": "start", "viewpoints": bad})).await;
+    let (error, _) = until(&mut socket, "error").await;
+    assert_eq!(error["parameter"], "viewpoints[0].style", "{error}");
+    // On arrival the view takes the viewpoint's look: the planned layer hidden, in photorealism.
+    let viewpoints = json!([{
+        "camera": {"position": [205, 185], "yaw": 10},
+        "caption": "Without the plan",
+        "preset": "photorealism",
+        "layer_styles": {"planned": {"visible": false}},
+    }]);
+    send(
+        &mut socket,
+        json!({"type": "tour", "action": "start", "viewpoints": viewpoints, "leg_s": 0.3, "dwell_s": 0.2}),
+    )
+    .await;
+    let (style, _) = until(&mut socket, "style").await;
+    assert_eq!(style["style"]["photorealism"], 1.0, "{style}");
+    assert_eq!(style["layer_styles"]["planned"]["visible"], false, "{style}");
+}
+
+#[tokio::test]
 async fn next_previous_and_stop_steer_a_tour() {
     let server = shared();
     let mut socket = connect(server, VIEW).await;

@@ -9,8 +9,13 @@ use crate::api::Ready;
 use crate::api::error::ApiError;
 use crate::api::meetings;
 use crate::api::view::{CameraParams, Source};
+use crate::fields::Mapping;
+use crate::render::style::{LayerStyle, PartialStyle};
+use crate::render::view_style::ViewStyle;
 use crate::scene::tour::{Tour, TourPace};
+use crate::store::request::DataRequest;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::time::Duration;
 use tokio::time::Instant;
 use utoipa::ToSchema;
@@ -44,6 +49,22 @@ pub struct TourViewpoint {
     /// The caption sent when the camera arrives (plain text, at most 500 characters).
     #[serde(default)]
     pub caption: Option<String>,
+    /// The look the view takes on arrival, as in a `style` control with `replace`: a preset,
+    /// style fields over it, styles of single layers (none of the three: the look stays).
+    #[serde(default)]
+    pub preset: Option<String>,
+    #[serde(default)]
+    #[schema(value_type = Option<Object>)]
+    pub style: Option<PartialStyle>,
+    #[serde(default)]
+    #[schema(value_type = Option<Object>)]
+    pub layer_styles: Option<BTreeMap<String, LayerStyle>>,
+    /// The data layers the view shows on arrival, as in a `data` control (absent: unchanged).
+    #[serde(default)]
+    pub mappings: Option<Vec<Mapping>>,
+    /// The data layers' time (ISO 8601).
+    #[serde(default)]
+    pub time: Option<String>,
 }
 
 /// The `tour` control message.
@@ -86,6 +107,10 @@ struct Stop {
     name: Option<String>,
     caption: Option<String>,
     eye_height: Option<f32>,
+    /// The look taken on arrival (checked when the tour starts).
+    look: Option<ViewStyle>,
+    /// The data layers shown on arrival (resolved when the tour starts).
+    data: Option<DataRequest>,
 }
 
 /// A tour being played by a session.
@@ -159,10 +184,18 @@ impl Session<'_> {
             control.viewpoints = crate::api::viewpoints::all(self.state)
                 .await?
                 .into_iter()
-                .map(|listed| TourViewpoint {
-                    camera: listed.viewpoint.camera,
-                    name: Some(listed.viewpoint.name),
-                    caption: Some(listed.viewpoint.caption).filter(|c| !c.is_empty()),
+                .map(|listed| {
+                    let v = listed.viewpoint;
+                    TourViewpoint {
+                        camera: v.camera,
+                        name: Some(v.name),
+                        caption: Some(v.caption).filter(|c| !c.is_empty()),
+                        preset: v.preset,
+                        style: v.style,
+                        layer_styles: v.layer_styles,
+                        mappings: v.mappings,
+                        time: v.time,
+                    }
                 })
                 .collect();
         }
@@ -184,10 +217,30 @@ impl Session<'_> {
                 )
             })?;
             cameras.push(resolved.camera);
+            let styled = viewpoint.preset.is_some() || viewpoint.style.is_some() || viewpoint.layer_styles.is_some();
+            let look = styled.then(|| ViewStyle {
+                preset: viewpoint.preset,
+                style: viewpoint.style.unwrap_or_default(),
+                layer_styles: viewpoint.layer_styles.unwrap_or_default(),
+            });
+            if let Some(look) = &look {
+                look.resolve(&scene.layer_names())
+                    .map_err(|e| ApiError::invalid(format!("viewpoints[{i}].style"), format!("viewpoint {i}: {e}")))?;
+            }
+            let data = match &viewpoint.mappings {
+                Some(mappings) => {
+                    Some(DataRequest::resolve(mappings, viewpoint.time.as_deref(), self.state.store()).map_err(
+                        |e| ApiError::invalid(format!("viewpoints[{i}].mappings"), format!("viewpoint {i}: {e}")),
+                    )?)
+                }
+                None => None,
+            };
             stops.push(Stop {
                 name: meetings::caption(viewpoint.name, &format!("viewpoints[{i}].name"))?,
                 caption: meetings::caption(viewpoint.caption, &format!("viewpoints[{i}].caption"))?,
                 eye_height: resolved.eye_height,
+                look,
+                data,
             });
         }
         let from = control.from.unwrap_or(0);
@@ -229,10 +282,13 @@ impl Session<'_> {
             (false, None) => None,
         };
         let mut caption = None;
+        let mut arrival = None;
         if let Some(index) = step.reached {
-            self.view.eye_height = play.stops[index].eye_height;
+            let stop = &play.stops[index];
+            self.view.eye_height = stop.eye_height;
             messages.push(play.message(TourEvent::Arrived, index));
-            caption = Some(play.stops[index].caption.clone());
+            caption = Some(stop.caption.clone());
+            arrival = Some((stop.look.clone(), stop.data.clone()));
         }
         if step.finished {
             messages.push(play.message(TourEvent::Finished, play.tour.current()));
@@ -240,6 +296,20 @@ impl Session<'_> {
         }
         if let Some(caption) = caption {
             self.caption_for_followers(caption);
+        }
+        // The viewpoint's look and data layers, as `style` and `data` controls would set them.
+        if let Some((look, data)) = arrival {
+            if let Some(look) = look {
+                match self.set_style(&look, true) {
+                    Ok(styles) => messages
+                        .push(ServerMessage::Style { style: styles.base.clone(), layer_styles: styles.layers.clone() }),
+                    Err(error) => tracing::warn!(session = self.id, %error, "a tour viewpoint's look was refused"),
+                }
+            }
+            if let Some(data) = data {
+                messages.push(ServerMessage::Data { time: data.time.clone(), warnings: data.warnings.clone() });
+                self.view.data = data;
+            }
         }
         messages
     }
