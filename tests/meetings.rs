@@ -245,6 +245,40 @@ async fn a_follower_detaches_with_the_presenters_view_and_rejoins() {
 }
 
 #[tokio::test]
+async fn a_follower_that_does_not_read_holds_up_neither_the_presenter_nor_the_others() {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let server = TestServer::start(dir.path(), |_| {});
+    let server = &server;
+    let (mut presenter, meeting) = presenter(server).await;
+    let code = meeting["code"].as_str().expect("code").to_owned();
+    next_frame(&mut presenter).await;
+    let mut reader = connect(server, &format!("{VIEW}&meeting={code}")).await;
+    let mut sleeper = connect(server, &format!("{VIEW}&meeting={code}")).await;
+    for follower in [&mut reader, &mut sleeper] {
+        until(follower, "meeting").await;
+        next_frame(follower).await;
+    }
+    // The sleeper reads nothing while the presenter moves twelve times.
+    let mut last = 0;
+    for _ in 0..12 {
+        send(&mut presenter, json!({"type": "move", "yaw": 10, "forward": 1})).await;
+        let (_, _, header, _) = tokio::time::timeout(Duration::from_secs(30), next_frame(&mut presenter))
+            .await
+            .expect("the presenter's frame");
+        last = header.frame_id;
+    }
+    let seen = tokio::time::timeout(Duration::from_secs(30), frames_until(&mut reader, last))
+        .await
+        .expect("the reading follower keeps up");
+    assert!(seen.contains_key(&last));
+    // Woken, the sleeper catches up to the newest frame (skipping what it missed, if anything).
+    let caught = tokio::time::timeout(Duration::from_secs(30), frames_until(&mut sleeper, last))
+        .await
+        .expect("the sleeping follower catches up");
+    assert!(caught.contains_key(&last) && caught.len() <= seen.len() + 1, "{} frames", caught.len());
+}
+
+#[tokio::test]
 async fn followers_are_told_when_the_meeting_ends_and_go_on_alone() {
     let server = shared();
     for close in [true, false] {
