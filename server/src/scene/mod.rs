@@ -196,12 +196,7 @@ impl Scene {
             }
             for (i, plan) in layer.plans.iter().enumerate() {
                 let path = base.join(&plan.file);
-                let crs = plan
-                    .crs
-                    .as_deref()
-                    .map(CrsDefinition::parse)
-                    .transpose()
-                    .map_err(|e| SceneError::Invalid(format!("layer '{}': plan {i}: crs: {e}", layer.name)))?;
+                let crs = optional_crs(plan.crs.as_deref(), &format!("layer '{}': plan {i}: crs", layer.name))?;
                 let scene = scene_def()?;
                 let target = SceneTarget { crs: &scene, frame: &terrain.frame };
                 let features = gis::read_vector(&path, crs.as_ref(), target)?;
@@ -285,12 +280,7 @@ fn load_drape(
     let ortho_path = config.orthophoto.as_ref().map(|file| base.join(file));
     let orthophoto = match &ortho_path {
         Some(path) => {
-            let crs = config
-                .orthophoto_crs
-                .as_deref()
-                .map(CrsDefinition::parse)
-                .transpose()
-                .map_err(|e| SceneError::Invalid(format!("terrain.orthophoto_crs: {e}")))?;
+            let crs = optional_crs(config.orthophoto_crs.as_deref(), "terrain.orthophoto_crs")?;
             let mut bands = gis::read_geotiff_bands(path)?;
             // Unsigned 16-bit orthophotos are scaled from 0..65535 to the drape's bytes.
             if gis::geotiff::is_uint16(path)? {
@@ -317,6 +307,12 @@ fn load_drape(
     cover::Drape::build(sources, &terrain.frame, terrain.bounds(), config.albedo)
 }
 
+/// The CRS a scene-file key gives (`EPSG:<code>`, a PROJ string or WKT), if any; errors name
+/// the key.
+fn optional_crs(text: Option<&str>, key: &str) -> Result<Option<CrsDefinition>, SceneError> {
+    text.map(CrsDefinition::parse).transpose().map_err(|e| SceneError::Invalid(format!("{key}: {e}")))
+}
+
 /// A land cover in the scene CRS: a raster reprojected if needed, or GeoJSON polygons
 /// rasterized over the terrain; `what` names its options in messages.
 fn load_landcover(
@@ -326,12 +322,7 @@ fn load_landcover(
     scene: &CrsDefinition,
     terrain: &Terrain,
 ) -> Result<gis::Raster, SceneError> {
-    let crs = opts
-        .crs
-        .as_deref()
-        .map(CrsDefinition::parse)
-        .transpose()
-        .map_err(|e| SceneError::Invalid(format!("{what}.crs: {e}")))?;
+    let crs = optional_crs(opts.crs.as_deref(), &format!("{what}.crs"))?;
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if matches!(ext.as_deref(), Some("geojson" | "json")) {
         let target = SceneTarget { crs: scene, frame: &terrain.frame };
