@@ -1005,6 +1005,22 @@ try {
       assert.ok(Math.abs(yaw - zoomed.yaw) < 0.01, `the camera kept its heading: ${zoomed.yaw} → ${yaw}`);
 
       assert.deepEqual(await axeViolations(phone), [], 'axe-core on the phone');
+
+      // Commenting on the phone: a tap on the view places the comment, the form fits the
+      // screen with 44 px controls, and the comment is listed.
+      await phone.evaluate(() => window.scrollTo(0, 0));
+      await openPane(phone, 'comments');
+      await phone.locator('#comment-add').click();
+      const view = await phone.locator('#viewer').boundingBox();
+      await phone.locator('#viewer').tap({ position: { x: view.width / 2, y: view.height * 0.8 } });
+      await phone.locator('#comment-form').waitFor({ state: 'visible', timeout: WAIT });
+      assert.deepEqual(await smallControls(phone), [], 'the comment form\'s controls are at least 44 × 44 px');
+      const wide = await phone.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+      assert.ok(wide <= 0, `the comment form needs no sideways scrolling (${wide} px too wide)`);
+      await phone.locator('#comment-text').fill('Please keep the footpath open');
+      await phone.locator('#comment-send').click();
+      await phone.waitForFunction(() => /footpath open/.test(document.getElementById('comment-list').textContent), null, { timeout: WAIT });
+      if (shots) await phone.screenshot({ path: join(shots, 'phone-comment.jpg'), type: 'jpeg', quality: 80 });
     } finally {
       await browser.close();
     }
