@@ -619,6 +619,15 @@ async fn comments_are_drawn_as_pins_where_they_were_made_and_hidden_ones_never()
     assert!(!plan_changed.is_empty(), "the pin is drawn in the plan view");
     assert!(plan_changed.iter().all(|&(x, y)| x.abs_diff(80) <= 24 && y.abs_diff(60) <= 70), "{plan_changed:?}");
 
+    // The pin of a comment made at a pixel of the default view, seen from 80 m south of it and
+    // from above, against the reference (looked at: a numbered pen pin on the slope).
+    let mut sheet = image::RgbaImage::new(w + 160, h.max(120));
+    image::imageops::replace(&mut sheet, &pinned, 0, 0);
+    image::imageops::replace(&mut sheet, &render(&server, &plan(true)).await.1, i64::from(w), 0);
+    let reference =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/reference/marks/comment_from_elsewhere.png");
+    common::assert_matches_reference(&sheet, &reference, 0.02);
+
     // The link of a pinned view keeps the pins.
     let link = get(&server.url(&format!("/api/render?{}", "comments=true"))).await;
     assert_eq!(link.status(), 200);
