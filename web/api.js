@@ -56,6 +56,17 @@ export async function getJSON(path, init) {
   return (await request(path, init)).json();
 }
 
+/** Every comment, hidden and pending ones too (the planner's moderation list). */
+export async function allComments() {
+  return (await getJSON('/api/comments?status=all', authorized())).comments ?? [];
+}
+
+/** Moderates comment `id`: `approve` (visible), `hide`, or `delete` (gone for good). */
+export async function moderateComment(id, action) {
+  const init = action === 'delete' ? { method: 'DELETE' } : { method: 'POST' };
+  await request(action === 'delete' ? `/api/comments/${id}` : `/api/comments/${id}/${action}`, authorized(init));
+}
+
 /** Fetches `path` and returns the response as a Blob; throws an `ApiError` for an error status. */
 export async function getBlob(path) {
   return (await request(path)).blob();

@@ -822,6 +822,8 @@ function setMode(mode) {
   const selected = document.querySelector('[role="tab"][aria-selected="true"]');
   if (mode === 'planner') app.selectTab('style');
   else if (selected?.classList.contains('planner-only')) app.selectTab('about');
+  // Planners see every comment with its moderation; citizens the visible ones.
+  app.comments?.refresh();
 }
 
 /** Enters planner mode with `token` if the server admits it; the token lasts for this browser session. */

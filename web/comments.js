@@ -3,7 +3,7 @@
 // stores the comment and draws it as a numbered pin. Likes and reports take an anonymous
 // author token the browser keeps (no personal data).
 
-import { errorOf } from './api.js';
+import { allComments, errorOf, moderateComment } from './api.js';
 
 const AUTHOR_KEY = 'landsketch-author';
 
@@ -55,7 +55,8 @@ async function postJSON(path, body) {
 
 /**
  * The Comments pane: add a comment at a place in the view, show the pins, read, like and
- * report. `app` gives the view, the frame camera and the WebSocket connection; `t` the words.
+ * report; in planner mode (`app.mode`) every comment with its status and approve, hide and
+ * delete. `app` gives the view, the frame camera and the WebSocket connection; `t` the words.
  */
 export class CommentsPanel {
   constructor({ $, t, app }) {
@@ -169,8 +170,12 @@ export class CommentsPanel {
   async refresh() {
     let comments = [];
     try {
-      const response = await fetch('/api/comments');
-      if (response.ok) comments = (await response.json()).comments ?? [];
+      if (this.app.mode === 'planner') {
+        comments = await allComments();
+      } else {
+        const response = await fetch('/api/comments');
+        if (response.ok) comments = (await response.json()).comments ?? [];
+      }
     } catch {
       return;
     }
@@ -197,7 +202,41 @@ export class CommentsPanel {
     report.textContent = this.t('comments.report');
     report.addEventListener('click', () => this.act(comment.id, 'report'));
     li.append(head, text, like, report);
+    if (this.app.mode === 'planner') li.append(...this.moderation(comment));
+    li.dataset.status = comment.status ?? 'visible';
     return li;
+  }
+
+  /** The planner's status line and buttons of `comment`. */
+  moderation(comment) {
+    const status = comment.status ?? 'visible';
+    const label = Object.assign(document.createElement('p'), {
+      className: 'comment-status',
+      textContent: this.t(`comments.status.${status}`),
+    });
+    const actions = status === 'visible' ? ['hide', 'delete'] : ['approve', 'delete'];
+    const buttons = actions.map((action) => {
+      const button = Object.assign(document.createElement('button'), {
+        type: 'button',
+        className: action === 'delete' ? 'danger' : '',
+        textContent: this.t(`comments.${action}`),
+      });
+      button.dataset.action = action;
+      button.addEventListener('click', () => this.moderate(comment.id, action));
+      return button;
+    });
+    return [label, ...buttons];
+  }
+
+  async moderate(id, action) {
+    try {
+      await moderateComment(id, action);
+      const done = { approve: 'comments.approved', hide: 'comments.hiddenNow', delete: 'comments.deleted' };
+      this.say(this.t(done[action]));
+      await this.refresh();
+    } catch (error) {
+      this.say(error.message);
+    }
   }
 
   async act(id, action) {

@@ -447,6 +447,24 @@ try {
     camera = JSON.parse(await page.locator('#frame').getAttribute('data-camera'));
   });
 
+  await check("a planner moderates the comments: hide one, show it again; the citizens' list follows", async () => {
+    await openPane(page, 'comments');
+    const visibleToAll = () => page.evaluate(async () => (await (await fetch('/api/comments')).json()).comments.length);
+    const status = () => page.locator('#comment-list li').first().getAttribute('data-status');
+    await page.waitForFunction(() => document.querySelector('#comment-list li button[data-action]'), null, { timeout: WAIT });
+    assert.equal(await status(), 'visible');
+    const before = await visibleToAll();
+    await page.locator('#comment-list li').first().locator('button[data-action="hide"]').click();
+    await page.waitForFunction(() => document.querySelector('#comment-list li')?.dataset.status === 'hidden', null, { timeout: WAIT });
+    assert.match(await page.locator('#comment-list li').first().textContent(), /Hidden/);
+    assert.equal(await visibleToAll(), before - 1, 'hidden from the public list');
+    await page.locator('#comment-list li').first().locator('button[data-action="approve"]').click();
+    await page.waitForFunction(() => document.querySelector('#comment-list li')?.dataset.status === 'visible', null, { timeout: WAIT });
+    assert.equal(await visibleToAll(), before, 'shown again');
+    assert.deepEqual(await unlabelled(page), [], 'every moderation control is labelled');
+    await openPane(page, 'style');
+  });
+
   await check('a meeting: the planner presents, a page joined by /?meeting=CODE follows, detaches and rejoins', async () => {
     await page.locator('#meeting-open').click();
     await page.waitForFunction(() => document.getElementById('meeting').dataset.role === 'presenter', null, { timeout: WAIT });
