@@ -67,6 +67,17 @@ export async function moderateComment(id, action) {
   await request(action === 'delete' ? `/api/comments/${id}` : `/api/comments/${id}/${action}`, authorized(init));
 }
 
+/** Stores the planner's viewpoint `name` (created or replaced) with `body`. */
+export async function saveViewpoint(name, body) {
+  const init = { method: 'PUT', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(body) };
+  await request(`/api/viewpoints/${encodeURIComponent(name)}`, authorized(init));
+}
+
+/** Removes the planner's viewpoint `name` (one of the admin API's). */
+export async function deleteViewpoint(name) {
+  await request(`/api/viewpoints/${encodeURIComponent(name)}`, authorized({ method: 'DELETE' }));
+}
+
 /** Fetches `path` and returns the response as a Blob; throws an `ApiError` for an error status. */
 export async function getBlob(path) {
   return (await request(path)).blob();

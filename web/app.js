@@ -1,7 +1,7 @@
 // The landsketch viewer: a WebSocket session shows the landscape, the panels change the view,
 // and the page's address always holds the view as `GET /api/render` parameters.
 
-import { ApiError, checkAuth, deleteLayer, getBlob, getJSON, resolveStyles, setAdminToken } from './api.js';
+import { ApiError, checkAuth, deleteLayer, deleteViewpoint, getBlob, getJSON, resolveStyles, saveViewpoint, setAdminToken } from './api.js';
 import { ArtMapsPanel } from './artmaps.js';
 import { CommentsPanel } from './comments.js';
 import { Connection, statsText } from './connection.js';
@@ -12,7 +12,7 @@ import { keepInside, Navigator } from './navigation.js';
 import { horizontalFov, MiniMap, showCompass, showScaleBar } from './orientation.js';
 import { composeReport, reportText } from './report.js';
 import { StyleModel, StylePanel } from './style-panel.js';
-import { showViewpoints, viewpointCamera } from './viewpoints.js';
+import { showViewpoints, viewpointBody, viewpointCamera } from './viewpoints.js';
 import { setupUpload } from './upload.js';
 
 const $ = (id) => document.getElementById(id);
@@ -282,11 +282,43 @@ async function loadViewpoints() {
   }
   app.viewpoints = viewpoints;
   $('viewpoints-section').hidden = viewpoints.length === 0;
+  const remove = app.mode === 'planner' ? removeViewpoint : null;
   showViewpoints($('viewpoints'), viewpoints, (viewpoint) => {
     setCamera(viewpointCamera(viewpoint.camera ?? {}, app.base));
     if (viewpoint.caption) say(viewpoint.caption, 'info');
     $('viewer').focus();
-  });
+  }, remove, (viewpoint) => t('viewpoints.remove', { name: viewpoint.name }));
+}
+
+/** The planner saves the current view (camera, look, data) as a viewpoint. */
+async function saveCurrentViewpoint() {
+  const name = $('viewpoint-name').value.trim();
+  const status = $('viewpoint-status');
+  if (!name) {
+    status.dataset.kind = 'error';
+    status.textContent = t('viewpoints.needName');
+    return;
+  }
+  try {
+    await saveViewpoint(name, viewpointBody(app.view, cameraMessage(app.view), $('viewpoint-caption').value.trim()));
+    status.dataset.kind = 'ok';
+    status.textContent = t('viewpoints.saved', { name });
+    $('viewpoint-name').value = '';
+    $('viewpoint-caption').value = '';
+    await loadViewpoints();
+  } catch (error) {
+    status.dataset.kind = 'error';
+    status.textContent = t('viewpoints.refused', { reason: error.message });
+  }
+}
+
+async function removeViewpoint(viewpoint) {
+  try {
+    await deleteViewpoint(viewpoint.name);
+    await loadViewpoints();
+  } catch (error) {
+    say(t('viewpoints.refused', { reason: error.message }));
+  }
 }
 
 /** The camera of "Go to the plan", or null without a planned layer. */
@@ -754,6 +786,10 @@ function setupViewer() {
   $('plan').addEventListener('click', () => setPlan(!app.view.plan));
   $('reset-view').addEventListener('click', resetView);
   $('go-plan').addEventListener('click', goToPlan);
+  $('viewpoint-save').addEventListener('submit', (e) => {
+    e.preventDefault();
+    saveCurrentViewpoint();
+  });
   $('tour').addEventListener('click', toggleTour);
   $('tour').hidden = false;
   $('with-plan').addEventListener('click', () => setPlanState(planStyle()?.visible === false, false));
@@ -822,8 +858,9 @@ function setMode(mode) {
   const selected = document.querySelector('[role="tab"][aria-selected="true"]');
   if (mode === 'planner') app.selectTab('style');
   else if (selected?.classList.contains('planner-only')) app.selectTab('about');
-  // Planners see every comment with its moderation; citizens the visible ones.
+  // Planners see every comment with its moderation and can remove viewpoints; citizens not.
   app.comments?.refresh();
+  if (app.scene) loadViewpoints();
 }
 
 /** Enters planner mode with `token` if the server admits it; the token lasts for this browser session. */

@@ -23,8 +23,30 @@ export function viewpointCamera(camera, base) {
   };
 }
 
-/** Fills `list` with a button per viewpoint; `go(viewpoint)` is called on a click. */
-export function showViewpoints(list, viewpoints, go) {
+/**
+ * The body of `PUT /api/viewpoints/{name}` for the view `view` (the page's view fields) with
+ * `caption`: its camera (`cameraMessage` of `link.js`, passed in as `camera`), and its look and
+ * data layers when it has any.
+ */
+export function viewpointBody(view, camera, caption) {
+  const { type, ...params } = camera;
+  const body = { caption, camera: params };
+  if (view.preset) body.preset = view.preset;
+  if (Object.keys(view.style ?? {}).length) body.style = view.style;
+  if (Object.keys(view.layerStyles ?? {}).length) body.layer_styles = view.layerStyles;
+  if (view.mappings?.length) {
+    body.mappings = view.mappings;
+    if (view.time) body.time = view.time;
+  }
+  return body;
+}
+
+/**
+ * Fills `list` with a button per viewpoint; `go(viewpoint)` is called on a click. With
+ * `remove` (planner mode) the viewpoints of the admin API get a remove button calling
+ * `remove(viewpoint)`, labelled by `removeLabel(viewpoint)`.
+ */
+export function showViewpoints(list, viewpoints, go, remove = null, removeLabel = null) {
   list.replaceChildren(
     ...viewpoints.map((viewpoint) => {
       const button = document.createElement('button');
@@ -33,7 +55,17 @@ export function showViewpoints(list, viewpoints, go) {
       button.textContent = viewpoint.name;
       if (viewpoint.caption) button.title = viewpoint.caption;
       button.addEventListener('click', () => go(viewpoint));
-      return button;
+      if (!remove || viewpoint.source !== 'admin') return button;
+      const drop = document.createElement('button');
+      drop.type = 'button';
+      drop.className = 'small danger remove-viewpoint';
+      drop.textContent = '×';
+      drop.setAttribute('aria-label', removeLabel(viewpoint));
+      drop.addEventListener('click', () => remove(viewpoint));
+      const item = document.createElement('span');
+      item.className = 'viewpoint-item';
+      item.append(button, drop);
+      return item;
     }),
   );
 }

@@ -465,6 +465,22 @@ try {
     await openPane(page, 'style');
   });
 
+  await check('a planner saves the view as a place to look from and removes it again', async () => {
+    await openPane(page, 'about');
+    await page.locator('#viewpoint-name').fill('The bench');
+    await page.locator('#viewpoint-caption').fill('Where the new bench would stand');
+    await page.locator('#viewpoint-submit').click();
+    await page.locator('#viewpoints button.viewpoint', { hasText: 'The bench' }).waitFor({ state: 'visible', timeout: WAIT });
+    const listed = await page.evaluate(async () => (await (await fetch('/api/viewpoints')).json()).viewpoints);
+    const bench = listed.find((v) => v.name === 'The bench');
+    assert.ok(bench && bench.source === 'admin' && bench.caption === 'Where the new bench would stand', JSON.stringify(bench));
+    assert.ok(Math.abs(bench.camera.position[0] - camera.position[0]) < 1, 'at the current camera');
+    assert.deepEqual(await unlabelled(page), [], 'the viewpoint controls are labelled');
+    await page.locator('#viewpoints .remove-viewpoint').click();
+    await page.waitForFunction(() => ![...document.querySelectorAll('#viewpoints button.viewpoint')].some((b) => b.textContent === 'The bench'), null, { timeout: WAIT });
+    await openPane(page, 'style');
+  });
+
   await check('a meeting: the planner presents, a page joined by /?meeting=CODE follows, detaches and rejoins', async () => {
     await page.locator('#meeting-open').click();
     await page.waitForFunction(() => document.getElementById('meeting').dataset.role === 'presenter', null, { timeout: WAIT });
