@@ -215,7 +215,13 @@ async fn a_follower_detaches_with_the_presenters_view_and_rejoins() {
     let (mut presenter, meeting) = presenter(server).await;
     let code = meeting["code"].as_str().expect("code");
     send(&mut presenter, json!({"type": "camera", "yaw": 123, "pitch": -4})).await;
-    let (_, status, _, _) = next_frame(&mut presenter).await;
+    // The meeting's opening still may come first; wait for the frame of the new camera.
+    let status = loop {
+        let (_, status, _, _) = next_frame(&mut presenter).await;
+        if status["camera"]["yaw"] == 123.0 {
+            break status;
+        }
+    };
     let mut follower = connect(server, &format!("{VIEW}&meeting={code}")).await;
     let (_, frame, _, _) = next_frame(&mut follower).await;
     assert_eq!(frame["camera"], status["camera"]);
