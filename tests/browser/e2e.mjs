@@ -1055,6 +1055,21 @@ try {
       await phone.locator('#comment-send').click();
       await phone.waitForFunction(() => /footpath open/.test(document.getElementById('comment-list').textContent), null, { timeout: WAIT });
       if (shots) await phone.screenshot({ path: join(shots, 'phone-comment.jpg'), type: 'jpeg', quality: 80 });
+
+      // The rest of the first-time flow on the phone: go to the plan, without it, share the link;
+      // the link opens the same view with the comparison.
+      await openPane(phone, 'about');
+      const atPlan = await stillAfter(phone, () => phone.locator('#go-plan').tap());
+      assert.ok(Math.hypot(atPlan.position[0] - zoomed.position[0], atPlan.position[1] - zoomed.position[1]) > 50, 'moved to the plan');
+      await stillAfter(phone, () => phone.locator('#with-plan').tap());
+      assert.equal(await phone.locator('#with-plan').getAttribute('aria-pressed'), 'false');
+      await linked(phone, 'layer_styles', (v) => v === JSON.stringify({ planned: { visible: false } }));
+      const shared = await mobile.newPage();
+      await shared.goto(phone.url());
+      const opened2 = await nextStill(shared, 0);
+      assert.ok(Math.hypot(opened2.position[0] - atPlan.position[0], opened2.position[1] - atPlan.position[1]) < 1, 'the link opens the same place');
+      assert.equal(await shared.locator('#with-plan').getAttribute('aria-pressed'), 'false', 'and without the plan');
+      await shared.close();
     } finally {
       await browser.close();
     }
