@@ -1004,6 +1004,7 @@ try {
       const phone = watch(await mobile.newPage());
       await phone.goto(base);
       const opened = await nextStill(phone, 0);
+      assert.match(await phone.locator('#welcome-title').textContent(), /Boulder/, 'the welcome on the phone');
       const overflow = await phone.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
       assert.ok(overflow <= 0, `no sideways scrolling (${overflow} px too wide)`);
       assert.match(await phone.locator('#hint-text').textContent(), /pinch/, 'touch hints on first use');
@@ -1054,13 +1055,21 @@ try {
       await phone.locator('#comment-text').fill('Please keep the footpath open');
       await phone.locator('#comment-send').click();
       await phone.waitForFunction(() => /footpath open/.test(document.getElementById('comment-list').textContent), null, { timeout: WAIT });
+      assert.equal(await phone.locator('#comments-show').getAttribute('aria-pressed'), 'true', 'the comments are pinned in the view');
       if (shots) await phone.screenshot({ path: join(shots, 'phone-comment.jpg'), type: 'jpeg', quality: 80 });
 
       // The rest of the first-time flow on the phone: go to the plan, without it, share the link;
       // the link opens the same view with the comparison.
       await openPane(phone, 'about');
-      const atPlan = await stillAfter(phone, () => phone.locator('#go-plan').tap());
-      assert.ok(Math.hypot(atPlan.position[0] - zoomed.position[0], atPlan.position[1] - zoomed.position[1]) > 50, 'moved to the plan');
+      // A still of the comment's pins may still be on its way: wait for the plan's.
+      await phone.locator('#go-plan').tap();
+      await phone.waitForFunction((from) => {
+        const canvas = document.getElementById('frame');
+        const camera = JSON.parse(canvas.dataset.camera ?? '{}');
+        return canvas.dataset.still === 'true' && camera.position
+          && Math.hypot(camera.position[0] - from[0], camera.position[1] - from[1]) > 50;
+      }, zoomed.position, { timeout: WAIT });
+      const atPlan = JSON.parse(await phone.locator('#frame').getAttribute('data-camera'));
       await stillAfter(phone, () => phone.locator('#with-plan').tap());
       assert.equal(await phone.locator('#with-plan').getAttribute('aria-pressed'), 'false');
       await linked(phone, 'layer_styles', (v) => v === JSON.stringify({ planned: { visible: false } }));
