@@ -18,4 +18,5 @@ pub mod prep;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod srgb;
 pub mod store;

@@ -294,7 +294,7 @@ fn main() -> Result<()> {
                 println!("drape      {}x{} cells of {:.1} m", drape.width, drape.height, drape.cell);
             }
             for class in drape.present_classes() {
-                let [r, g, b] = class.color.map(|c| (c * 255.0).round() as u8);
+                let [r, g, b] = class.rgb8();
                 println!(
                     "ground     {:>4} {:<24} #{r:02x}{g:02x}{b:02x} tone {:+.2}",
                     class.code, class.name, class.tone

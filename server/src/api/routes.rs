@@ -85,7 +85,7 @@ pub struct GroundClassInfo {
 
 impl From<&CoverClass> for GroundClassInfo {
     fn from(class: &CoverClass) -> Self {
-        let [r, g, b] = class.color.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+        let [r, g, b] = class.rgb8();
         GroundClassInfo { code: class.code, name: class.name.clone(), color: format!("#{r:02x}{g:02x}{b:02x}") }
     }
 }

@@ -3,9 +3,8 @@
 //! [`super::passes::CREASES`]) draws as pen lines of constant width on screen, fixed to the
 //! ground, hidden where nearer geometry covers them.
 
-use super::uniforms::{Vec3f, gpu_block};
+use super::uniforms::{Vec3f, gpu_block, storage_buffer};
 use crate::prep::creases::CreaseSegment;
-use wgpu::util::DeviceExt;
 
 gpu_block! {
     /// One segment of a crease line as the creases pass reads it.
@@ -32,13 +31,5 @@ pub fn crease_buffer(device: &wgpu::Device, segments: &[CreaseSegment]) -> (wgpu
     if lines.is_empty() {
         lines.push(CreaseLine::default());
     }
-    let mut bytes = encase::StorageBuffer::new(Vec::<u8>::new());
-    // A growable Vec always takes a runtime-sized array of blocks encase lays out.
-    bytes.write(&lines).expect("crease lines fit a growable buffer");
-    let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("crease lines"),
-        contents: &bytes.into_inner(),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    (buffer, count)
+    (storage_buffer(device, "crease lines", &lines), count)
 }

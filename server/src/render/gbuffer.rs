@@ -302,12 +302,7 @@ impl SurfaceMaterial {
 pub fn average_color(material: &crate::scene::plant::Material) -> [f32; 4] {
     let [r, g, b, a] = material.base_color;
     let Some(texture) = &material.texture else { return [r, g, b, a] };
-    let linear: Vec<f32> = (0..=255u8)
-        .map(|v| {
-            let c = f32::from(v) / 255.0;
-            if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
-        })
-        .collect();
+    let linear: Vec<f32> = (0..=255u8).map(crate::srgb::to_linear).collect();
     let mut sum = [0.0f64; 4];
     for p in texture.pixels() {
         let w = f64::from(p[3]) / 255.0;

@@ -5,9 +5,8 @@
 //! pass shifts its tone and outlines class borders; the data and compose passes pick its
 //! tonal art map.
 
-use super::uniforms::gpu_block;
+use super::uniforms::{gpu_block, storage_buffer};
 use crate::scene::cover::{CoverClass, CoverStrokes, Drape};
-use wgpu::util::DeviceExt;
 
 gpu_block! {
     /// How the ground of one land-cover class is drawn.
@@ -46,12 +45,5 @@ impl CoverStyle {
 pub fn cover_buffer(device: &wgpu::Device, drape: &Drape) -> wgpu::Buffer {
     let blocks: Vec<CoverStyle> =
         std::iter::once(CoverStyle::new(None)).chain(drape.classes.iter().map(|c| CoverStyle::new(Some(c)))).collect();
-    let mut bytes = encase::StorageBuffer::new(Vec::<u8>::new());
-    // A growable Vec always takes a runtime-sized array of blocks encase lays out.
-    bytes.write(&blocks).expect("cover classes fit a growable buffer");
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("land-cover classes"),
-        contents: &bytes.into_inner(),
-        usage: wgpu::BufferUsages::STORAGE,
-    })
+    storage_buffer(device, "land-cover classes", &blocks)
 }

@@ -200,6 +200,24 @@ pub fn bytes<T: ShaderType + WriteInto>(block: &T) -> Vec<u8> {
     buffer.into_inner()
 }
 
+/// A read-only storage buffer holding `items` as a WGSL runtime-sized `array<T>` (at least one
+/// item: a binding cannot be empty).
+pub fn storage_buffer<T>(device: &wgpu::Device, label: &str, items: &Vec<T>) -> wgpu::Buffer
+where
+    Vec<T>: ShaderType + WriteInto,
+{
+    use wgpu::util::DeviceExt;
+    let mut bytes = encase::StorageBuffer::new(Vec::<u8>::new());
+    // Writing into a growable Vec fails only for types encase cannot lay out, which the
+    // derive rejects at compile time.
+    bytes.write(items).expect("a storage array fits a growable buffer");
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &bytes.into_inner(),
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
 /// The size in bytes of a `T` uniform.
 pub fn size_of<T: ShaderType>() -> u64 {
     T::min_size().get()

@@ -104,6 +104,13 @@ pub struct CoverClass {
     pub outline: bool,
 }
 
+impl CoverClass {
+    /// Its colour as 8-bit sRGB (the drape's, the legend's).
+    pub fn rgb8(&self) -> [u8; 3] {
+        self.color.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)
+    }
+}
+
 /// The kinds of ground the default tables are made of.
 #[derive(Debug, Clone, Copy)]
 enum Kind {
@@ -359,13 +366,6 @@ pub struct DrapeSources<'a> {
     pub classes: (Vec<CoverClass>, BTreeSet<i64>),
 }
 
-/// sRGB encoding of a linear value 0..1 as a byte.
-fn srgb_byte(linear: f32) -> u8 {
-    let c = linear.clamp(0.0, 1.0);
-    let s = if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
-    (s * 255.0).round() as u8
-}
-
 impl Drape {
     /// One cell of the linear albedo `albedo` over `bounds`: the ground of a scene without a
     /// land cover or orthophoto.
@@ -377,7 +377,7 @@ impl Drape {
             width: 1,
             height: 1,
             class_of: vec![0],
-            colors: vec![albedo.map(srgb_byte)],
+            colors: vec![albedo.map(crate::srgb::from_linear)],
             classes: Vec::new(),
         }
     }
@@ -413,7 +413,7 @@ impl Drape {
         let height = (((hi[1] - lo[1]) / cell).ceil() as usize).clamp(1, MAX_DRAPE_SIDE);
         let (classes, declared) = sources.classes;
         let index: HashMap<i64, u8> = classes.iter().enumerate().map(|(i, c)| (c.code, (i + 1) as u8)).collect();
-        let plain = albedo.map(srgb_byte);
+        let plain = albedo.map(crate::srgb::from_linear);
         let mut class_of = vec![0u8; width * height];
         let mut colors = vec![plain; width * height];
         let mut seen = BTreeSet::new();
@@ -431,7 +431,7 @@ impl Drape {
                     seen.insert(code);
                     if let Some(&i) = index.get(&code) {
                         class_of[at] = i;
-                        colors[at] = classes[usize::from(i) - 1].color.map(|c| (c * 255.0).round() as u8);
+                        colors[at] = classes[usize::from(i) - 1].rgb8();
                     }
                 }
                 if let Some((bands, _)) = sources.orthophoto {
@@ -537,12 +537,8 @@ impl Drape {
 
     /// The mean colour of the drape, linear RGB (the terrain's abstract colour, thesis 6.2).
     pub fn mean_linear(&self) -> [f32; 3] {
-        let linear = |v: u8| {
-            let c = f32::from(v) / 255.0;
-            if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
-        };
         let n = self.colors.len().max(1) as f32;
-        [0, 1, 2].map(|i| self.colors.iter().map(|c| linear(c[i])).sum::<f32>() / n)
+        [0, 1, 2].map(|i| self.colors.iter().map(|c| crate::srgb::to_linear(c[i])).sum::<f32>() / n)
     }
 }
 
