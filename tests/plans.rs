@@ -323,6 +323,134 @@ fn points_and_csv_inventories_place_plants_at_the_features() {
     assert!((plants[4].scale * width - 6.0).abs() < 1e-3);
 }
 
+/// British National Grid as QGIS and ArcGIS write it in a `.prj` (ESRI WKT, no EPSG code).
+const BNG_PRJ: &str = r#"PROJCS["OSGB_1936_British_National_Grid",GEOGCS["GCS_OSGB 1936",DATUM["D_OSGB_1936",SPHEROID["Airy_1830",6377563.396,299.3249646]],PRIMEM["Greenwich",0],UNIT["Degree",0.017453292519943295]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",49],PARAMETER["central_meridian",-2],PARAMETER["scale_factor",0.9996012717],PARAMETER["false_easting",400000],PARAMETER["false_northing",-100000],UNIT["Meter",1]]"#;
+
+/// Writes `shapes` with a `species` text and a `height` number per feature as the Shapefile
+/// `name` (`.shp`, `.shx`, `.dbf`) in `dir`, with a `.prj` of British National Grid if `prj`.
+fn write_shapefile(dir: &Path, name: &str, shapes: &[(geo::Geometry<f64>, &str, f64)], prj: bool) -> PathBuf {
+    use shapefile::dbase::{FieldValue, Record, TableWriterBuilder};
+    let path = dir.join(name);
+    let table = TableWriterBuilder::new().add_character_field("species".try_into().unwrap(), 20).add_numeric_field(
+        "height".try_into().unwrap(),
+        10,
+        2,
+    );
+    let mut writer = shapefile::Writer::from_path(&path, table).unwrap();
+    for (geometry, species, height) in shapes {
+        let mut record = Record::default();
+        record.insert("species".into(), FieldValue::Character(Some(species.to_string())));
+        record.insert("height".into(), FieldValue::Numeric(Some(*height)));
+        match shapefile::Shape::try_from(geometry.clone()).unwrap() {
+            shapefile::Shape::Polygon(s) => writer.write_shape_and_record(&s, &record).unwrap(),
+            shapefile::Shape::Polyline(s) => writer.write_shape_and_record(&s, &record).unwrap(),
+            shapefile::Shape::Point(s) => writer.write_shape_and_record(&s, &record).unwrap(),
+            other => panic!("no writer for {other}"),
+        }
+    }
+    drop(writer);
+    if prj {
+        std::fs::write(path.with_extension("prj"), BNG_PRJ).unwrap();
+    }
+    path
+}
+
+#[test]
+fn shapefile_plans_place_the_same_plants_as_the_same_features_in_geojson() {
+    let dir = tempfile::tempdir().unwrap();
+    let polygon = geo::Geometry::Polygon(geo::Polygon::new(
+        WOOD.iter().map(|&(e, n)| geo::coord! { x: e, y: n }).collect(),
+        vec![],
+    ));
+    let (a, b) = ((321_050.0, 129_050.0), (321_350.0, 129_130.0));
+    let hedge = geo::Geometry::LineString(vec![geo::coord! { x: a.0, y: a.1 }, geo::coord! { x: b.0, y: b.1 }].into());
+    let trees = [(321_100.0, 129_100.0, "OAK", 18.0), (321_300.0, 129_250.0, "pine", 12.0)];
+    let areas = write_shapefile(dir.path(), "wood.shp", &[(polygon, "oak", 0.0)], true);
+    let lines = write_shapefile(dir.path(), "hedges.shp", &[(hedge, "hawthorn", 0.0)], true);
+    let points: Vec<_> =
+        trees.iter().map(|&(e, n, s, h)| (geo::Geometry::Point(geo::Point::new(e, n)), s, h)).collect();
+    let points = write_shapefile(dir.path(), "trees.shp", &points, true);
+    let plans = |areas: &Path, lines: &Path, points: &Path| {
+        format!(
+            "[[layers.plans]]\nkind = \"areas\"\nfile = \"{}\"\ndensity = 150\nmin_spacing = 2.0\n\
+             [[layers.plans]]\nkind = \"hedgerows\"\nfile = \"{}\"\nspacing = 0.8\nrows = 2\nrow_spacing = 0.6\n\
+             [[layers.plans]]\nkind = \"plants\"\nfile = \"{}\"\nspecies_map = {{ OAK = \"oak\" }}\n",
+            areas.display(),
+            lines.display(),
+            points.display()
+        )
+    };
+    let from_shp = load(&plan_scene(dir.path(), &plans(&areas, &lines, &points), 7));
+    // The same features as GeoJSON in British National Grid (a `crs` member).
+    let ring: Vec<String> = WOOD.iter().chain(WOOD.first()).map(|(e, n)| format!("[{e}, {n}]")).collect();
+    let wood = write(
+        dir.path(),
+        "wood.geojson",
+        &collection(
+            &[feature(
+                &format!(r#"{{"type": "Polygon", "coordinates": [[{}]]}}"#, ring.join(", ")),
+                r#""species": "oak""#,
+            )],
+            Some(27700),
+        ),
+    );
+    let line = format!(r#"{{"type": "LineString", "coordinates": [[{}, {}], [{}, {}]]}}"#, a.0, a.1, b.0, b.1);
+    let hedges =
+        write(dir.path(), "hedges.geojson", &collection(&[feature(&line, r#""species": "hawthorn""#)], Some(27700)));
+    let features: Vec<String> = trees
+        .iter()
+        .map(|(e, n, s, h)| {
+            feature(
+                &format!(r#"{{"type": "Point", "coordinates": [{e}, {n}]}}"#),
+                &format!(r#""species": "{s}", "height": {h}"#),
+            )
+        })
+        .collect();
+    let points_json = write(dir.path(), "trees.geojson", &collection(&features, Some(27700)));
+    let from_json = load(&plan_scene(dir.path(), &plans(&wood, &hedges, &points_json), 7));
+    let (shp, json) = (&from_shp.layers[0].plants, &from_json.layers[0].plants);
+    assert!(shp.len() > 100, "{} plants", shp.len());
+    assert_eq!(shp.len(), json.len());
+    for (p, q) in shp.iter().zip(json) {
+        assert_eq!(p.species, q.species);
+        assert!(
+            (p.position[0] - q.position[0]).abs() < 1e-3 && (p.position[1] - q.position[1]).abs() < 1e-3,
+            "{p:?} vs {q:?}"
+        );
+        assert!((p.scale - q.scale).abs() < 1e-4);
+    }
+    // The tree points' heights come from the `.dbf`.
+    let oak = from_shp.species.iter().position(|s| s.name == "oak").unwrap();
+    let last = &shp[shp.len() - 2];
+    assert_eq!(last.species, oak);
+    assert!((last.scale * from_shp.species[oak].model.height() - 18.0).abs() < 1e-3);
+
+    // Without a `.prj` the file's CRS must be given; with `crs` it loads.
+    let bare = write_shapefile(
+        dir.path(),
+        "bare.shp",
+        &[(geo::Geometry::Point(geo::Point::new(321_100.0, 129_100.0)), "oak", 9.0)],
+        false,
+    );
+    let one = |extra: &str| format!("[[layers.plans]]\nkind = \"plants\"\nfile = \"{}\"\n{extra}", bare.display());
+    let err = load_err(&plan_scene(dir.path(), &one(""), 1));
+    assert!(err.contains("bare.shp") && err.contains("bare.prj") && err.contains("crs"), "{err}");
+    let scene = load(&plan_scene(dir.path(), &one("crs = \"EPSG:27700\"\n"), 1));
+    assert!((f64::from(scene.layers[0].plants[0].position[0]) - (321_100.0 - ORIGIN.0)).abs() < 1e-3);
+    // A `.shp` without its `.dbf`, and one that is not a Shapefile, are refused by name.
+    std::fs::remove_file(bare.with_extension("dbf")).unwrap();
+    let err = load_err(&plan_scene(dir.path(), &one("crs = \"EPSG:27700\"\n"), 1));
+    assert!(err.contains("bare.dbf"), "{err}");
+    let junk = write(dir.path(), "junk.shp", "not a shapefile");
+    std::fs::write(junk.with_extension("dbf"), "").unwrap();
+    let err = load_err(&plan_scene(
+        dir.path(),
+        &format!("[[layers.plans]]\nkind = \"plants\"\nfile = \"{}\"\ncrs = \"EPSG:27700\"\n", junk.display()),
+        1,
+    ));
+    assert!(err.contains("junk.shp") && err.contains("Shapefile"), "{err}");
+}
+
 #[test]
 fn polygons_rasterized_as_landcover_drive_rules() {
     let dir = tempfile::tempdir().unwrap();
@@ -463,22 +591,43 @@ fn real_tree_preservation_orders_on_the_real_lidar_dtm() {
         tpo.display(),
         map.join(", ")
     );
-    let scene = load(&scene(dir.path(), &dtm, &layers));
-    assert_eq!(scene.terrain.frame.crs().epsg(), Some(27700));
-    let plants = &scene.layers[0].plants;
+    let village = load(&scene(dir.path(), &dtm, &layers));
+    assert_eq!(village.terrain.frame.crs().epsg(), Some(27700));
+    let plants = &village.layers[0].plants;
     // All 52 protected trees lie on the 1.8 km × 1.8 km tile.
     assert_eq!(plants.len(), 52);
-    let pine = scene.species.iter().position(|s| s.name == "pine").unwrap();
+    let pine = village.species.iter().position(|s| s.name == "pine").unwrap();
     assert_eq!(plants.iter().filter(|p| p.species == pine).count(), conifer.len() + 1, "CEDAR twice");
     // The shapefile gives the same trees in British National Grid (ogr2ogr wrote the WGS 84
     // copy): every placed tree stands within 5 m (a Helmert shift against OSTN15) of one.
     let bng = shapefile_points(&shared("tpo_trees.shp").unwrap());
     assert_eq!(bng.len(), 52);
-    let (ox, oy) = scene.terrain.frame.origin_crs();
+    let (ox, oy) = village.terrain.frame.origin_crs();
     for p in plants {
         let (e, n) = (f64::from(p.position[0]) + ox, f64::from(p.position[1]) + oy);
         let d = bng.iter().map(|(x, y)| (x - e).hypot(y - n)).fold(f64::INFINITY, f64::min);
         assert!(d < 5.0, "tree at E {e:.1}, N {n:.1} is {d:.1} m from the shapefile's nearest");
+    }
+    // The shapefile itself as the plan (`.prj` in ESRI WKT, species from the `.dbf`): the same
+    // 52 trees at the shapefile's points, each of the species the GeoJSON copy gave it.
+    let layers = layers.replace(&tpo.display().to_string(), &shared("tpo_trees.shp").unwrap().display().to_string());
+    let from_shp = load(&scene(dir.path(), &dtm, &layers));
+    let shp_plants = &from_shp.layers[0].plants;
+    assert_eq!(shp_plants.len(), 52);
+    for (p, &(x, y)) in shp_plants.iter().zip(&bng) {
+        let (e, n) = (f64::from(p.position[0]) + ox, f64::from(p.position[1]) + oy);
+        assert!(
+            (e - x).abs() < 0.01 && (n - y).abs() < 0.01,
+            "tree at E {e:.2}, N {n:.2}, shapefile E {x:.2}, N {y:.2}"
+        );
+        let nearest = plants
+            .iter()
+            .min_by(|a, b| {
+                let d = |q: &&PlantInstance| (q.position[0] - p.position[0]).hypot(q.position[1] - p.position[1]);
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap();
+        assert_eq!(nearest.species, p.species);
     }
 }
 

@@ -1,8 +1,8 @@
 //! Vector plans as planners export them: GeoJSON (RFC 7946, plus the common `crs` member of
-//! the 2008 draft that QGIS and GDAL write for other CRSs than WGS 84) and CSV point lists
-//! (tree inventories). Features are read with the `geojson` crate, checked with `geo`
-//! (polygon validity) and moved into the scene's local metric frame, where placement and
-//! rasterization work.
+//! the 2008 draft that QGIS and GDAL write for other CRSs than WGS 84), ESRI Shapefiles (`.shp`
+//! with its `.dbf` attributes and `.prj` CRS) and CSV point lists (tree inventories). Features
+//! are read with the `geojson` and `shapefile` crates, checked with `geo` (polygon validity)
+//! and moved into the scene's local metric frame, where placement and rasterization work.
 
 use std::path::{Path, PathBuf};
 
@@ -101,32 +101,40 @@ pub struct SceneTarget<'a> {
     pub frame: &'a LocalFrame,
 }
 
-/// Reads a vector file by extension: `.geojson`/`.json` or `.csv`. `crs` overrides the
-/// file's own CRS (GeoJSON: WGS 84 or its `crs` member; CSV: WGS 84 for lon/lat columns,
-/// else the scene's).
+/// Reads a vector file by extension: `.geojson`/`.json`, `.shp` or `.csv`. `crs` overrides
+/// the file's own CRS (GeoJSON: WGS 84 or its `crs` member; Shapefile: its `.prj`; CSV: WGS 84
+/// for lon/lat columns, else the scene's).
 pub fn read_vector(
     path: &Path,
     crs: Option<&CrsDefinition>,
     target: SceneTarget<'_>,
 ) -> Result<Vec<SceneFeature>, VectorError> {
-    let text = read_text(path)?;
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if ext.as_deref() == Some("shp") {
+        return read_shapefile(path, crs, target);
+    }
+    let text = read_text(path)?;
     match ext.as_deref() {
         Some("csv") => read_csv(path, &text, crs, target),
         _ => read_geojson(path, &text, crs, target),
     }
 }
 
-fn read_text(path: &Path) -> Result<String, VectorError> {
-    let io = |source| VectorError::Io { path: path.to_path_buf(), source };
-    let len = std::fs::metadata(path).map_err(io)?.len();
+/// Refuses a file larger than [`MAX_VECTOR_BYTES`] (or one that cannot be read).
+fn check_size(path: &Path) -> Result<(), VectorError> {
+    let len = std::fs::metadata(path).map_err(|source| VectorError::Io { path: path.to_path_buf(), source })?.len();
     if len > MAX_VECTOR_BYTES {
         return Err(VectorError::Format {
             path: path.to_path_buf(),
             message: format!("file of {len} bytes is larger than the limit of {MAX_VECTOR_BYTES} bytes"),
         });
     }
-    let bytes = std::fs::read(path).map_err(io)?;
+    Ok(())
+}
+
+fn read_text(path: &Path) -> Result<String, VectorError> {
+    check_size(path)?;
+    let bytes = std::fs::read(path).map_err(|source| VectorError::Io { path: path.to_path_buf(), source })?;
     String::from_utf8(bytes)
         .map_err(|_| VectorError::Format { path: path.to_path_buf(), message: "not UTF-8 text".into() })
 }
@@ -154,24 +162,112 @@ pub fn read_geojson(
         geojson::GeoJson::Feature(f) => vec![(f.geometry, f.properties.unwrap_or_default())],
         geojson::GeoJson::Geometry(g) => vec![(Some(g), Map::new())],
     };
-    let to_scene = Transformer::new(&file_crs, target.crs)
+    let features = features.into_iter().map(|(geometry, properties)| {
+        let geometry = geometry.map(|g| Geometry::try_from(&g.value).map_err(|e| format!("bad geometry: {e}")));
+        Ok((geometry.transpose()?, properties))
+    });
+    features_to_scene(path, &file_crs, target, features)
+}
+
+/// Checks features read from `path` in `file_crs` (in file order; `Ok((None, _))` for one
+/// without a geometry, `Err` for one whose geometry could not be read) and moves them into
+/// the scene. Polygons must be valid; at least one feature must have a geometry.
+fn features_to_scene(
+    path: &Path,
+    file_crs: &CrsDefinition,
+    target: SceneTarget<'_>,
+    features: impl Iterator<Item = Result<(Option<Geometry<f64>>, Map<String, Value>), String>>,
+) -> Result<Vec<SceneFeature>, VectorError> {
+    let to_scene = Transformer::new(file_crs, target.crs)
         .map_err(|source| VectorError::Crs { path: path.to_path_buf(), source })?;
-    let mut out = Vec::with_capacity(features.len());
-    for (index, (geometry, properties)) in features.into_iter().enumerate() {
+    let mut out = Vec::new();
+    for (index, feature) in features.enumerate() {
         let feature_err = |message: String| VectorError::Feature { path: path.to_path_buf(), index, message };
+        let (geometry, properties) = feature.map_err(feature_err)?;
         let Some(geometry) = geometry else { continue };
-        let geometry: Geometry<f64> =
-            Geometry::try_from(&geometry.value).map_err(|e| feature_err(format!("bad geometry: {e}")))?;
         if let Err(e) = geometry.check_validation() {
             return Err(feature_err(format!("invalid {}: {e}", kind_name(&geometry))));
         }
-        let geometry = move_to_scene(&geometry, &file_crs, &to_scene, target.frame).map_err(feature_err)?;
+        let geometry = move_to_scene(&geometry, file_crs, &to_scene, target.frame).map_err(feature_err)?;
         out.push(SceneFeature { index, geometry, properties });
     }
     if out.is_empty() {
-        return Err(format("has no features with a geometry".into()));
+        return Err(VectorError::Format {
+            path: path.to_path_buf(),
+            message: "has no features with a geometry".into(),
+        });
     }
     Ok(out)
+}
+
+/// Reads an ESRI Shapefile: the shapes of `path` (`.shp`), their attributes from the `.dbf`
+/// beside it (text as the file stores it, numbers, logicals and dates as ISO text) and the CRS
+/// from the `.prj` beside it (WKT naming an EPSG CRS by authority or name) unless `crs` is
+/// given. Points, multi-points, polylines and polygons (rings by their orientation, holes in
+/// their shells) are read; Z and M values are dropped.
+pub fn read_shapefile(
+    path: &Path,
+    crs: Option<&CrsDefinition>,
+    target: SceneTarget<'_>,
+) -> Result<Vec<SceneFeature>, VectorError> {
+    let format = |message: String| VectorError::Format { path: path.to_path_buf(), message };
+    let dbf = path.with_extension("dbf");
+    for part in [path, dbf.as_path()] {
+        check_size(part)?;
+    }
+    let file_crs = match crs {
+        Some(c) => c.clone(),
+        None => {
+            let prj = path.with_extension("prj");
+            let wkt = std::fs::read_to_string(&prj).map_err(|_| {
+                format(format!(
+                    "has no readable {} beside it: give the file's CRS (`crs = \"EPSG:…\"`)",
+                    prj.file_name().map_or("projection file".into(), |n| n.to_string_lossy())
+                ))
+            })?;
+            CrsDefinition::from_wkt(&wkt).map_err(|source| VectorError::Crs { path: prj.clone(), source })?
+        }
+    };
+    let mut reader =
+        shapefile::Reader::from_path(path).map_err(|e| format(format!("not a readable Shapefile: {e}")))?;
+    let features = reader.iter_shapes_and_records().map(|feature| {
+        let (shape, record) = feature.map_err(|e| format!("cannot be read: {e}"))?;
+        let geometry = match shape {
+            shapefile::Shape::NullShape => None,
+            shape => Some(Geometry::try_from(shape).map_err(|e| format!("bad geometry: {e}"))?),
+        };
+        let properties = record.into_iter().map(|(name, value)| (name, dbf_value(value))).collect();
+        Ok((geometry, properties))
+    });
+    features_to_scene(path, &file_crs, target, features)
+}
+
+/// A dBase attribute as a JSON value (numbers as numbers, everything else as text; empty
+/// fields as null), so Shapefile features read like GeoJSON ones.
+fn dbf_value(value: shapefile::dbase::FieldValue) -> Value {
+    use shapefile::dbase::FieldValue as F;
+    let number = |n: f64| serde_json::Number::from_f64(n).map_or(Value::Null, Value::Number);
+    match value {
+        F::Character(Some(s)) | F::Memo(s) => Value::String(s.trim().to_string()),
+        F::Numeric(Some(n)) | F::Double(n) | F::Currency(n) => number(n),
+        F::Float(Some(n)) => number(f64::from(n)),
+        F::Integer(n) => Value::from(n),
+        F::Logical(Some(b)) => Value::Bool(b),
+        F::Date(Some(d)) => Value::String(format!("{:04}-{:02}-{:02}", d.year(), d.month(), d.day())),
+        F::DateTime(t) => {
+            let (d, t) = (t.date(), t.time());
+            Value::String(format!(
+                "{:04}-{:02}-{:02}T{:02}:{:02}:{:02}",
+                d.year(),
+                d.month(),
+                d.day(),
+                t.hours(),
+                t.minutes(),
+                t.seconds()
+            ))
+        }
+        F::Character(None) | F::Numeric(None) | F::Float(None) | F::Logical(None) | F::Date(None) => Value::Null,
+    }
 }
 
 /// The CRS of GeoJSON text (see [`crs_member`]).

@@ -324,7 +324,7 @@ fn load_landcover(
 ) -> Result<gis::Raster, SceneError> {
     let crs = optional_crs(opts.crs.as_deref(), &format!("{what}.crs"))?;
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    if matches!(ext.as_deref(), Some("geojson" | "json")) {
+    if matches!(ext.as_deref(), Some("geojson" | "json" | "shp")) {
         let target = SceneTarget { crs: scene, frame: &terrain.frame };
         let mut features = gis::read_vector(path, crs.as_ref(), target)?;
         if let Some(class) = opts.class {
