@@ -723,6 +723,95 @@ async fn renders_show_data_layers_in_plan_view_with_table_9_1_warnings() {
     assert_error(render(&server, plan_pitch).await, 422, "invalid_parameter", Some("camera.pitch")).await;
 }
 
+#[tokio::test]
+async fn a_geojson_label_layer_uploads_and_maps_like_the_same_labels_as_a_raster() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let server = TestServer::start(dir.path(), |_| {});
+    // Two zones splitting the sample scene's DEM at its middle meridian: class 1 west, 2 east.
+    let e = loaded().0.terrain.dem.extent();
+    let mid = 0.5 * (e.min_x + e.max_x);
+    let zone = |x0: f64, x1: f64, class: u32| {
+        let ring = [(x0, e.min_y), (x1, e.min_y), (x1, e.max_y), (x0, e.max_y), (x0, e.min_y)];
+        let ring: Vec<String> = ring.iter().map(|(x, y)| format!("[{x}, {y}]")).collect();
+        format!(
+            r#"{{"type": "Feature", "properties": {{"zone": {class}}}, "geometry": {{"type": "Polygon", "coordinates": [[{}]]}}}}"#,
+            ring.join(", ")
+        )
+    };
+    let geojson = format!(
+        r#"{{"type": "FeatureCollection", "features": [{}, {}]}}"#,
+        zone(e.min_x, mid, 1),
+        zone(mid, e.max_x, 2)
+    );
+    let created =
+        upload(&server, "name=Zones&kind=label&variable=zone&filename=zones.geojson", geojson.into_bytes()).await;
+    assert_eq!(created.status(), StatusCode::CREATED);
+    let zones = json_of(created).await;
+    assert_eq!(
+        (zones["kind"].as_str(), zones["crs"].as_str(), zones["source"].as_str()),
+        (Some("label"), Some("EPSG:4326"), Some("zones.geojson")),
+        "{zones}"
+    );
+    assert_eq!((zones["min"].as_f64(), zones["max"].as_f64()), (Some(1.0), Some(2.0)), "{zones}");
+    // The same split as a label GeoTIFF: 8 columns, 1 in the western four, 2 in the eastern.
+    let raster = Raster {
+        width: 8,
+        height: 6,
+        data: (0..48).map(|i| if i % 8 < 4 { 1.0 } else { 2.0 }).collect(),
+        nodata: None,
+        transform: GeoTransform {
+            origin_x: e.min_x,
+            origin_y: e.max_y,
+            cell_width: (e.max_x - e.min_x) / 8.0,
+            cell_height: (e.max_y - e.min_y) / 6.0,
+        },
+        crs: Crs::Geographic { epsg: Some(4326) },
+        palette: None,
+    };
+    let tif = dir.path().join("zones.tif");
+    write_geotiff_f32(&tif, &raster).expect("write GeoTIFF");
+    let created =
+        upload(&server, "name=Zones%20raster&kind=label&filename=zones.tif", std::fs::read(&tif).expect("read")).await;
+    assert_eq!(created.status(), StatusCode::CREATED);
+    let raster_id = json_of(created).await["id"].as_str().expect("id").to_string();
+
+    // Both map to colour in a plan view the same way: the halves differ, the layers agree.
+    let camera = serde_json::json!({"mode": "plan", "center": [0, 0], "width": 2000});
+    let view = |layer: &str| {
+        serde_json::json!({"camera": camera, "width": 96, "height": 64,
+            "mappings": [{"layer": layer, "target": "color", "colormap": "tableau10"}]})
+    };
+    let picture = |response: reqwest::Response| async move {
+        assert_eq!(response.status(), StatusCode::OK);
+        image::load_from_memory(&response.bytes().await.expect("body")).expect("PNG").to_rgba8()
+    };
+    let from_json = picture(render(&server, view(zones["id"].as_str().expect("id"))).await).await;
+    let from_tif = picture(render(&server, view(&raster_id)).await).await;
+    let close = |a: &image::Rgba<u8>, b: &image::Rgba<u8>| a.0.iter().zip(b.0).all(|(x, y)| x.abs_diff(y) <= 8);
+    let agree = from_json.pixels().zip(from_tif.pixels()).filter(|(a, b)| close(a, b)).count();
+    let total = from_json.pixels().len();
+    assert!(agree * 100 >= total * 97, "only {agree} of {total} pixels agree");
+    // Mean colour of the western and eastern quarters (the zones' middles) differ.
+    let mean = |image: &image::RgbaImage, x0: u32, x1: u32| {
+        let mut sum = [0f64; 3];
+        for y in 0..image.height() {
+            for x in x0..x1 {
+                let p = image.get_pixel(x, y);
+                (0..3).for_each(|c| sum[c] += f64::from(p[c]));
+            }
+        }
+        sum.map(|v| v / f64::from((x1 - x0) * image.height()))
+    };
+    let (west, east) = (mean(&from_json, 8, 32), mean(&from_json, 64, 88));
+    let apart: f64 = west.iter().zip(east).map(|(a, b)| (a - b).abs()).sum();
+    assert!(apart > 30.0, "west {west:?} and east {east:?} look alike");
+    // A GeoJSON upload given as a scalar is refused by name, nothing stored.
+    let before = tree(dir.path());
+    let scalar = upload(&server, "name=Zones2&kind=scalar&filename=zones.geojson", b"{}".to_vec()).await;
+    assert_eq!(scalar.status().as_u16(), 422);
+    assert_eq!(tree(dir.path()), before);
+}
+
 // ---------------------------------------------------------------------------------------------
 // WebSocket `data` messages
 
