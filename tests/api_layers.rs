@@ -7,6 +7,7 @@
 mod common;
 
 use common::server::{TestServer, client, get, json_of, loaded};
+use common::tiff::{DATA_OFFSET, Entry, LONG, SHORT, geographic_entries, longs, shorts, tiff_file};
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::ws::{FrameHeader, HEADER_LEN};
 use landsketch::fields::legend::{LEGEND_WIDTH, SCALAR_LEGEND_HEIGHT};
@@ -345,67 +346,36 @@ fn bomb_tiff(bomb: Bomb) -> Vec<u8> {
     let blob = zlib.finish().expect("deflate");
     let chunks = SIDE.div_ceil(chunk_rows) * SIDE.div_ceil(chunk_width);
     let e = loaded().0.terrain.dem.extent();
-    // Arrays after the header: (tag, type, count, bytes).
-    let shorts = |v: &[u16]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-    let longs = |v: &[u32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-    let doubles = |v: &[f64]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-    let (short, long, double) = (3u16, 4u16, 12u16);
-    let data_offset = 8u32;
-    let offsets = vec![data_offset; chunks as usize];
+    let offsets = vec![DATA_OFFSET; chunks as usize];
     let counts = vec![blob.len() as u32; chunks as usize];
     let (offsets_tag, counts_tag) = match bomb {
         Bomb::Samples => (273, 279),
         Bomb::TilePadding => (324, 325),
     };
-    let mut entries: Vec<(u16, u16, u32, Vec<u8>)> = vec![
-        (256, long, 1, longs(&[SIDE])),
-        (257, long, 1, longs(&[SIDE])),
-        (258, short, u32::from(samples), shorts(&vec![32; usize::from(samples)])),
-        (259, short, 1, shorts(&[8])),
-        (262, short, 1, shorts(&[1])),
-        (offsets_tag, long, chunks, longs(&offsets)),
-        (277, short, 1, shorts(&[samples])),
-        (counts_tag, long, chunks, longs(&counts)),
-        (284, short, 1, shorts(&[1])),
-        (339, short, u32::from(samples), shorts(&vec![3; usize::from(samples)])),
-        (33550, double, 3, doubles(&[(e.max_x - e.min_x) / 4096.0, (e.max_y - e.min_y) / 4096.0, 0.0])),
-        (33922, double, 6, doubles(&[0.0, 0.0, 0.0, e.min_x, e.max_y, 0.0])),
-        (34735, short, 8, shorts(&[1, 1, 0, 1, 2048, 0, 1, 4326])),
+    let mut entries: Vec<Entry> = vec![
+        (256, LONG, 1, longs(&[SIDE])),
+        (257, LONG, 1, longs(&[SIDE])),
+        (258, SHORT, u32::from(samples), shorts(&vec![32; usize::from(samples)])),
+        (259, SHORT, 1, shorts(&[8])),
+        (262, SHORT, 1, shorts(&[1])),
+        (offsets_tag, LONG, chunks, longs(&offsets)),
+        (277, SHORT, 1, shorts(&[samples])),
+        (counts_tag, LONG, chunks, longs(&counts)),
+        (284, SHORT, 1, shorts(&[1])),
+        (339, SHORT, u32::from(samples), shorts(&vec![3; usize::from(samples)])),
     ];
+    entries.extend(geographic_entries(SIDE, SIDE, e.min_x, e.min_y, e.max_x, e.max_y));
     match bomb {
         Bomb::Samples => {
-            entries.push((278, long, 1, longs(&[chunk_rows])));
-            entries.push((338, short, u32::from(samples - 1), shorts(&vec![0; usize::from(samples - 1)])));
+            entries.push((278, LONG, 1, longs(&[chunk_rows])));
+            entries.push((338, SHORT, u32::from(samples - 1), shorts(&vec![0; usize::from(samples - 1)])));
         }
         Bomb::TilePadding => {
-            entries.push((322, long, 1, longs(&[chunk_width])));
-            entries.push((323, long, 1, longs(&[chunk_rows])));
+            entries.push((322, LONG, 1, longs(&[chunk_width])));
+            entries.push((323, LONG, 1, longs(&[chunk_rows])));
         }
     }
-    entries.sort_by_key(|entry| entry.0);
-    let mut file = b"II*\0".to_vec();
-    let ifd_offset = data_offset as usize + blob.len();
-    file.extend_from_slice(&(ifd_offset as u32).to_le_bytes());
-    file.extend_from_slice(&blob);
-    let mut arrays = Vec::new();
-    let arrays_at = ifd_offset + 2 + entries.len() * 12 + 4;
-    file.extend_from_slice(&(entries.len() as u16).to_le_bytes());
-    for (tag, kind, count, bytes) in &entries {
-        file.extend_from_slice(&tag.to_le_bytes());
-        file.extend_from_slice(&kind.to_le_bytes());
-        file.extend_from_slice(&count.to_le_bytes());
-        if bytes.len() <= 4 {
-            let mut inline = bytes.clone();
-            inline.resize(4, 0);
-            file.extend_from_slice(&inline);
-        } else {
-            file.extend_from_slice(&((arrays_at + arrays.len()) as u32).to_le_bytes());
-            arrays.extend_from_slice(bytes);
-        }
-    }
-    file.extend_from_slice(&0u32.to_le_bytes());
-    file.extend_from_slice(&arrays);
-    file
+    tiff_file(&blob, entries)
 }
 
 /// D4: GeoTIFFs within the cell limit whose strips or tiles decode to gigabytes are refused

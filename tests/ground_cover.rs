@@ -245,6 +245,51 @@ fn a_16_bit_orthophoto_is_scaled_to_the_drapes_bytes() {
 }
 
 #[test]
+fn a_jpeg_compressed_ycbcr_orthophoto_colours_the_ground_in_rgb() {
+    // An orthophoto as agencies ship them (and GDAL writes with COMPRESS=JPEG
+    // PHOTOMETRIC=YCBCR): one JPEG strip of YCbCr samples, 4:2:0 chroma, over the sample
+    // scene's DEM in EPSG:4326; the western half red, the eastern half green.
+    use common::tiff::{LONG, SHORT, geographic_entries, longs, shorts, tiff_file};
+    let (w, h) = (64u32, 48u32);
+    let (red, green) = ([200u8, 40, 40], [40u8, 160, 60]);
+    let rgb: Vec<u8> = (0..w * h).flat_map(|i| if i % w < w / 2 { red } else { green }).collect();
+    let mut jpeg = Vec::new();
+    jpeg_encoder::Encoder::new(&mut jpeg, 95)
+        .encode(&rgb, w as u16, h as u16, jpeg_encoder::ColorType::Rgb)
+        .expect("JPEG");
+    let e = landsketch::gis::load_raster(&repo("data/boulder/dem.tif")).expect("DEM").extent();
+    let mut entries = vec![
+        (256, LONG, 1, longs(&[w])),
+        (257, LONG, 1, longs(&[h])),
+        (258, SHORT, 3, shorts(&[8, 8, 8])),
+        (259, SHORT, 1, shorts(&[7])),
+        (262, SHORT, 1, shorts(&[6])),
+        (273, LONG, 1, longs(&[common::tiff::DATA_OFFSET])),
+        (277, SHORT, 1, shorts(&[3])),
+        (278, LONG, 1, longs(&[h])),
+        (279, LONG, 1, longs(&[jpeg.len() as u32])),
+        (284, SHORT, 1, shorts(&[1])),
+        (530, SHORT, 2, shorts(&[2, 2])),
+    ];
+    entries.extend(geographic_entries(w, h, e.min_x, e.min_y, e.max_x, e.max_y));
+    let ortho = scene_with("ortho-jpeg", "").with_file_name("ortho-jpeg.tif");
+    std::fs::write(&ortho, tiff_file(&jpeg, entries)).expect("write");
+    let scene = Scene::load(&scene_with("ortho-jpeg", &format!("orthophoto = \"{}\"", ortho.display())))
+        .expect("scene with a JPEG orthophoto");
+    let drape = &scene.terrain.drape;
+    let (lo, hi) = scene.terrain.bounds();
+    let at = |fx: f64| {
+        let (x, y) = (lo[0] + fx * (hi[0] - lo[0]), 0.5 * (lo[1] + hi[1]));
+        let col = ((x - drape.origin[0]) / drape.cell) as usize;
+        let row = ((drape.origin[1] - y) / drape.cell) as usize;
+        drape.colors[row * drape.width + col]
+    };
+    let near = |a: [u8; 3], b: [u8; 3]| a.iter().zip(b).all(|(x, y)| x.abs_diff(y) <= 8);
+    assert!(near(at(0.25), red), "west {:?}, expected {red:?}", at(0.25));
+    assert!(near(at(0.75), green), "east {:?}, expected {green:?}", at(0.75));
+}
+
+#[test]
 fn the_lidar_villages_buildings_read_as_a_land_cover_class() {
     // The real Kingston St Mary DTM with its OpenStreetMap building footprints (tests only,
     // ../shared/data/SOURCES.md) as one class of the ground: built-up ground without strokes,

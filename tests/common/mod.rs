@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod server;
+pub mod tiff;
 pub mod ws;
 
 use image::RgbaImage;

@@ -402,6 +402,10 @@ fn read_bands(path: &Path, all: bool) -> Result<Vec<Raster>, GisError> {
     let sample_type = SampleType::from_tags(format, bits)
         .map_err(|detail| GisError::UnsupportedSampleType { path: path.to_path_buf(), detail })?;
     let photometric = shorts(&mut decoder, Tag::PhotometricInterpretation)?.and_then(|p| p.first().copied());
+    let ycbcr = (all && photometric == Some(PhotometricInterpretation::YCbCr.to_u16()) && bits == 8)
+        .then(|| YCbCr::from_tags(&mut decoder))
+        .transpose()
+        .map_err(tiff_err)?;
     let planar = shorts(&mut decoder, Tag::PlanarConfiguration)?.and_then(|p| p.first().copied()) == Some(2);
     let samples = shorts(&mut decoder, Tag::SamplesPerPixel)?.and_then(|p| p.first().copied()).unwrap_or(1);
     if all && planar && samples > 1 {
@@ -512,7 +516,67 @@ fn read_bands(path: &Path, all: bool) -> Result<Vec<Raster>, GisError> {
     if all {
         bands.extend((1..stride).map(raster));
     }
+    if let (Some(ycbcr), [y, cb, cr, ..]) = (ycbcr, bands.as_mut_slice()) {
+        ycbcr.to_rgb(y, cb, cr);
+    }
     Ok(bands)
+}
+
+/// The YCbCr → RGB conversion of a YCbCr GeoTIFF (TIFF 6.0 section 21; what JPEG-compressed
+/// orthophotos hold: the decoder returns the JPEG stream's samples as they are).
+#[derive(Debug, Clone, Copy)]
+struct YCbCr {
+    /// YCbCrCoefficients: the luma weights of red, green and blue (default BT.601).
+    luma: [f64; 3],
+    /// ReferenceBlackWhite: black and white codes of Y, Cb and Cr (default full range).
+    reference: [f64; 6],
+}
+
+impl YCbCr {
+    /// Reads YCbCrCoefficients (529) and ReferenceBlackWhite (532), defaults where absent.
+    fn from_tags<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>) -> tiff::TiffResult<YCbCr> {
+        let mut rationals = |tag: u16| -> tiff::TiffResult<Option<Vec<f64>>> {
+            use tiff::decoder::ifd::Value;
+            let Some(value) = decoder.find_tag(Tag::Unknown(tag))? else { return Ok(None) };
+            let items = match value {
+                Value::List(items) => items,
+                one => vec![one],
+            };
+            Ok(items
+                .into_iter()
+                .map(|v| match v {
+                    Value::Rational(n, d) if d != 0 => Some(f64::from(n) / f64::from(d)),
+                    Value::Double(x) => Some(x),
+                    Value::Float(x) => Some(f64::from(x)),
+                    _ => None,
+                })
+                .collect())
+        };
+        let luma = match rationals(529)?.as_deref() {
+            Some(&[r, g, b]) if r > 0.0 && g > 0.0 && b > 0.0 => [r, g, b],
+            _ => [0.299, 0.587, 0.114],
+        };
+        let reference = match rationals(532)?.as_deref() {
+            Some(&[a, b, c, d, e, f]) if b > a && d > c && f > e => [a, b, c, d, e, f],
+            _ => [0.0, 255.0, 128.0, 255.0, 128.0, 255.0],
+        };
+        Ok(YCbCr { luma, reference })
+    }
+
+    /// Turns the bands `y`, `cb`, `cr` into red, green and blue in place (0..=255).
+    fn to_rgb(self, y: &mut Raster, cb: &mut Raster, cr: &mut Raster) {
+        let [lr, lg, lb] = self.luma;
+        let [y0, y1, cb0, cb1, cr0, cr1] = self.reference;
+        for ((y, cb), cr) in y.data.iter_mut().zip(cb.data.iter_mut()).zip(cr.data.iter_mut()) {
+            let luma = (*y - y0) * 255.0 / (y1 - y0);
+            let blue_diff = (*cb - cb0) * 127.0 / (cb1 - cb0);
+            let red_diff = (*cr - cr0) * 127.0 / (cr1 - cr0);
+            let red = red_diff * (2.0 - 2.0 * lr) + luma;
+            let blue = blue_diff * (2.0 - 2.0 * lb) + luma;
+            let green = (luma - lb * blue - lr * red) / lg;
+            (*y, *cb, *cr) = (red.clamp(0.0, 255.0), green.clamp(0.0, 255.0), blue.clamp(0.0, 255.0));
+        }
+    }
 }
 
 /// The GeoKeys of a GeoTIFF as plain values (SHORT keys and DOUBLE keys), for interpreting
