@@ -539,6 +539,51 @@ fn bad_vector_input_names_the_file_and_the_feature() {
     assert!(matches!(Scene::load(&dir.path().join("missing.toml")), Err(SceneError::Io { .. })));
 }
 
+#[test]
+fn a_large_dem_is_cropped_to_the_scene_extent_and_averaged_down_to_max_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    // 400 × 400 cells of 1 m in British National Grid, heights 100 + 0.1 per column eastwards.
+    let dem = dir.path().join("lidar.tif");
+    write_dem(&dem, Crs::Projected { epsg: Some(27700), unit_to_metre: 1.0 }, 321_000.0, 129_400.0, 1.0, 400);
+    let with = |terrain: &str| {
+        let text = format!(
+            "name = \"large\"\n[terrain]\ndem = \"{}\"\n{terrain}\n[camera]\nposition = [0.0, 0.0]\nyaw = 0.0\n",
+            dem.display()
+        );
+        write(dir.path(), "large.toml", &text)
+    };
+    // The village's 200 m × 200 m, at most 10,000 cells: 200 × 200 cells averaged by 2.
+    let scene = load(&with("extent = [321100, 129100, 321300, 129300]\nmax_cells = 10000"));
+    let grid = &scene.terrain.dem;
+    assert_eq!((grid.width, grid.height), (100, 100));
+    assert_eq!(
+        (grid.transform.cell_width, grid.transform.origin_x, grid.transform.origin_y),
+        (2.0, 321_100.0, 129_300.0)
+    );
+    assert_eq!(scene.terrain.frame.origin_crs(), (321_200.0, 129_200.0));
+    // A plane stays the plane: the height at a point is the DEM's there.
+    for (e, n) in [(321_150.0, 129_250.0), (321_201.0, 129_199.0), (321_290.0, 129_110.0)] {
+        let h = scene.terrain.height_at(e - 321_200.0, n - 129_200.0).unwrap();
+        let expected = 100.0 + 0.1 * (e - 321_000.0 - 0.5);
+        assert!((h - expected).abs() < 1e-4, "height {h} at E {e}, expected {expected}");
+    }
+    // Without a crop the whole tile, averaged by 4 to fit.
+    let whole = load(&with("max_cells = 10000"));
+    assert_eq!(
+        (whole.terrain.dem.width, whole.terrain.dem.height, whole.terrain.dem.transform.cell_width),
+        (100, 100, 4.0)
+    );
+    // The default keeps a DEM of up to 2048 × 2048 cells as it is.
+    assert_eq!(load(&with("")).terrain.dem.width, 400);
+    // Bad windows and limits are refused naming the key (and the DEM).
+    let err = load_err(&with("extent = [0, 0, 10, 10]"));
+    assert!(err.contains("terrain.extent") && err.contains("lidar.tif") && err.contains("does not overlap"), "{err}");
+    let err = load_err(&with("extent = [321300, 129100, 321100, 129300]"));
+    assert!(err.contains("terrain.extent") && err.contains("min < max"), "{err}");
+    let err = load_err(&with("max_cells = 1"));
+    assert!(err.contains("terrain.max_cells"), "{err}");
+}
+
 /// The shared Kingston St Mary data (tests only; see ../shared/data/SOURCES.md for licences).
 fn shared(name: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kingston_st_mary").join(name);

@@ -214,6 +214,59 @@ impl Raster {
     }
 }
 
+impl Raster {
+    /// The cells (column, row, width, height) whose area meets `extent` (CRS coordinates);
+    /// `None` if it does not overlap the raster.
+    pub fn window_of(&self, extent: &Extent) -> Option<(usize, usize, usize, usize)> {
+        let (c0, r0) = self.transform.to_grid(extent.min_x, extent.max_y);
+        let (c1, r1) = self.transform.to_grid(extent.max_x, extent.min_y);
+        let clamp = |v: f64, n: usize| v.clamp(0.0, n as f64);
+        // Clamped to 0..=n, so the casts are in range.
+        let (c0, c1) = (clamp(c0.floor(), self.width) as usize, clamp(c1.ceil(), self.width) as usize);
+        let (r0, r1) = (clamp(r0.floor(), self.height) as usize, clamp(r1.ceil(), self.height) as usize);
+        (c1 > c0 && r1 > r0).then_some((c0, r0, c1 - c0, r1 - r0))
+    }
+
+    /// The raster averaged down by `factor` along both axes: each cell the mean of the valid
+    /// cells of its `factor` × `factor` block (blocks at the east and south edges may be
+    /// partial), nodata where a block has none. A DEM too large for the terrain keeps its
+    /// relief at a coarser cell this way, without the aliasing of taking every n-th cell.
+    pub fn decimate(&self, factor: usize) -> Raster {
+        let factor = factor.max(1);
+        let (w, h) = (self.width.div_ceil(factor), self.height.div_ceil(factor));
+        let fill = self.nodata.unwrap_or(f64::NAN);
+        let mut data = Vec::with_capacity(w * h);
+        for row in 0..h {
+            for col in 0..w {
+                let (mut sum, mut n) = (0.0, 0u32);
+                for r in row * factor..((row + 1) * factor).min(self.height) {
+                    for c in col * factor..((col + 1) * factor).min(self.width) {
+                        if let Some(v) = self.get(c, r) {
+                            sum += v;
+                            n += 1;
+                        }
+                    }
+                }
+                data.push(if n > 0 { sum / f64::from(n) } else { fill });
+            }
+        }
+        let t = self.transform;
+        Raster {
+            width: w,
+            height: h,
+            data,
+            transform: GeoTransform {
+                cell_width: t.cell_width * factor as f64,
+                cell_height: t.cell_height * factor as f64,
+                ..t
+            },
+            nodata: self.nodata,
+            crs: self.crs,
+            palette: self.palette.clone(),
+        }
+    }
+}
+
 /// For a fractional position `g` between cell centres (centre i at `g = i`), the lower index
 /// and the weight of the upper one, clamped to the outermost centres.
 fn lerp_axis(g: f64, n: usize) -> (usize, f64) {
@@ -361,6 +414,25 @@ mod tests {
         r.height = 1;
         r.data = vec![7.0];
         assert_eq!(r.sample_bilinear(101.0, 49.0), Some(7.0));
+    }
+
+    #[test]
+    fn window_of_an_extent_and_decimation() {
+        // small(): 3 × 2 cells of 10 m from (100, 50): x 100..130, y 30..50.
+        let r = small();
+        let e = |min_x, min_y, max_x, max_y| Extent { min_x, min_y, max_x, max_y };
+        assert_eq!(r.window_of(&e(111.0, 31.0, 119.0, 39.0)), Some((1, 1, 1, 1)));
+        assert_eq!(r.window_of(&e(0.0, 0.0, 1000.0, 1000.0)), Some((0, 0, 3, 2)));
+        assert_eq!(r.window_of(&e(105.0, 45.0, 125.0, 46.0)), Some((0, 0, 3, 1)));
+        assert_eq!(r.window_of(&e(200.0, 0.0, 300.0, 10.0)), None);
+        // Blocks of 2 × 2: (1+2+4+5)/4, and 3 alone (the nodata cell is left out).
+        let d = r.decimate(2);
+        assert_eq!((d.width, d.height), (2, 1));
+        assert_eq!(d.data, vec![3.0, 3.0]);
+        assert_eq!((d.transform.cell_width, d.transform.origin_x), (20.0, 100.0));
+        let all_nodata = Raster { data: vec![-1.0; 6], ..small() };
+        assert_eq!(all_nodata.decimate(3).data, vec![-1.0]);
+        assert_eq!(r.decimate(1).data, r.data);
     }
 
     #[test]

@@ -76,6 +76,13 @@ pub struct TerrainConfig {
     pub dem: PathBuf,
     /// CRS of the DEM when the file carries none (e.g. an `.asc` without `.prj`): "EPSG:4326".
     pub crs: Option<String>,
+    /// Crop window `[min_x, min_y, max_x, max_y]` in the DEM's CRS: the scene is the DEM's
+    /// cells that meet it (a village out of a county's lidar).
+    pub extent: Option<[f64; 4]>,
+    /// Most DEM cells the terrain keeps: a larger DEM (after `extent`) is averaged down by the
+    /// smallest whole factor that fits (a 5,000 × 5,000 lidar tile by 3 with the default).
+    #[serde(default = "default_max_dem_cells")]
+    pub max_cells: u64,
     /// Ground albedo, linear RGB 0..1 (where no land-cover class or orthophoto colours it).
     #[serde(default = "default_albedo")]
     pub albedo: [f32; 3],
@@ -96,6 +103,12 @@ pub struct TerrainConfig {
     pub orthophoto: Option<PathBuf>,
     /// CRS of `orthophoto` when the file has none or a wrong one.
     pub orthophoto_crs: Option<String>,
+}
+
+/// 2048 × 2048 cells: what a terrain of chunk LODs renders at walking height and from above
+/// in about 1 GB (BENCHMARKS.md, "Large DEMs").
+fn default_max_dem_cells() -> u64 {
+    1 << 22
 }
 
 fn default_albedo() -> [f32; 3] {
