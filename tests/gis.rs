@@ -1,12 +1,14 @@
 //! S1 terrain input: GeoTIFF / ESRI ASCII grid loading, georeferencing, CRS, local frame and
 //! bad-input errors, against the fixtures in `data/test/` (see `data/test/README.md`).
 
+mod common;
+
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use landsketch::gis::{
-    Crs, GeoTransform, GisError, LocalFrame, Raster, load_raster, read_ascii_grid, read_geotiff, write_geotiff_f32,
-    write_geotiff_u8,
+    Crs, Extent, GeoTransform, GisError, LocalFrame, Raster, load_dem, load_raster, read_ascii_grid, read_geotiff,
+    write_geotiff_f32, write_geotiff_u8,
 };
 
 fn fixture(name: &str) -> PathBuf {
@@ -137,6 +139,135 @@ fn crop_fixtures_match_the_full_dem() {
         assert_transform_close(&r.transform, &window.transform, 1e-9);
         assert_eq!(r.crs, WGS84, "{name}");
         assert_eq!(r.nodata, Some(0.0), "{name}");
+    }
+}
+
+#[test]
+fn windows_of_every_layout_read_only_their_chunks_and_match_the_whole_file() {
+    // Every sample layout (strips, tiles with partial tiles, predictors, big-endian, planar,
+    // three bands) read through the windowed reader: whole, and a window across chunk
+    // borders, equal the whole file read at once and cropped.
+    let window = Extent { min_x: -105.4595, min_y: 40.1390, max_x: -105.4555, max_y: 40.1420 };
+    for name in [
+        "boulder_SRTMGL3_derived.tif",
+        "boulder_crop_tiled_i16.tif",
+        "boulder_crop_u16_lzw.tif",
+        "boulder_crop_f32_fpredict.tif",
+        "boulder_crop_f64.tif",
+        "boulder_crop_i32_bigendian.tif",
+        "boulder_crop_f32_bigendian_tiled.tif",
+        "boulder_crop_u32_packbits.tif",
+        "boulder_crop_pixelispoint.tif",
+        "boulder_crop_3band_pixel.tif",
+        "boulder_crop_2band_planar.tif",
+        "zion_nlcd2011_simplified.tif",
+    ] {
+        let whole = load(name);
+        let read = load_dem(&fixture(name), None, u64::MAX).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_same_cells(&read, &whole);
+        assert_transform_close(&read.transform, &whole.transform, 1e-12);
+        if let Some((col, row, w, h)) = whole.window_of(&window) {
+            let expected = whole.crop(col, row, w, h).unwrap();
+            let read = load_dem(&fixture(name), Some(&window), u64::MAX).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_same_cells(&read, &expected);
+            assert_transform_close(&read.transform, &expected.transform, 1e-12);
+        }
+    }
+    let err = load_dem(
+        &fixture("boulder_crop_f64.tif"),
+        Some(&Extent { min_x: 0.0, min_y: 0.0, max_x: 1.0, max_y: 1.0 }),
+        u64::MAX,
+    )
+    .unwrap_err();
+    assert!(matches!(err, GisError::WindowOutside { .. }), "{err}");
+    assert!(err.to_string().contains("boulder_crop_f64.tif") && err.to_string().contains("does not overlap"), "{err}");
+}
+
+/// A tiled Float32 GeoTIFF (EPSG:4326, 16 × 16 tiles, uncompressed) of `full` and its
+/// overview by 2 (a COG's layout); the tiles listed in `broken` of the full image point past
+/// the end of the file, and with `broken_full` every full-resolution tile does.
+fn cog(full: &Raster, broken: &[usize], broken_full: bool) -> Vec<u8> {
+    use common::tiff::{DATA_OFFSET, DOUBLE, Entry, LONG, SHORT, doubles, longs, shorts, tiff_images};
+    let overview = full.decimate(2);
+    let mut data = Vec::new();
+    let mut images: Vec<Vec<Entry>> = Vec::new();
+    for (level, r) in [full, &overview].into_iter().enumerate() {
+        let (across, down) = (r.width.div_ceil(16), r.height.div_ceil(16));
+        let (mut offsets, mut counts) = (Vec::new(), Vec::new());
+        for tile in 0..across * down {
+            let (tx, ty) = (tile % across * 16, tile / across * 16);
+            let bytes: Vec<u8> = (0..256)
+                .flat_map(|i| {
+                    let (x, y) = (tx + i % 16, ty + i / 16);
+                    let v = if x < r.width && y < r.height { r.data[y * r.width + x] as f32 } else { 0.0 };
+                    v.to_le_bytes()
+                })
+                .collect();
+            let bad = level == 0 && (broken_full || broken.contains(&tile));
+            offsets.push(if bad { 0x7fff_0000 } else { DATA_OFFSET + data.len() as u32 });
+            counts.push(bytes.len() as u32);
+            data.extend_from_slice(&bytes);
+        }
+        let n = offsets.len() as u32;
+        let mut entries = vec![
+            (254, LONG, 1, longs(&[u32::from(level > 0)])),
+            (256, LONG, 1, longs(&[r.width as u32])),
+            (257, LONG, 1, longs(&[r.height as u32])),
+            (258, SHORT, 1, shorts(&[32])),
+            (259, SHORT, 1, shorts(&[1])),
+            (262, SHORT, 1, shorts(&[1])),
+            (277, SHORT, 1, shorts(&[1])),
+            (284, SHORT, 1, shorts(&[1])),
+            (322, LONG, 1, longs(&[16])),
+            (323, LONG, 1, longs(&[16])),
+            (324, LONG, n, longs(&offsets)),
+            (325, LONG, n, longs(&counts)),
+            (339, SHORT, 1, shorts(&[3])),
+        ];
+        if level == 0 {
+            let t = r.transform;
+            entries.push((33550, DOUBLE, 3, doubles(&[t.cell_width, t.cell_height, 0.0])));
+            entries.push((33922, DOUBLE, 6, doubles(&[0.0, 0.0, 0.0, t.origin_x, t.origin_y, 0.0])));
+            entries.push((34735, SHORT, 8, shorts(&[1, 1, 0, 1, 2048, 0, 1, 4326])));
+        }
+        images.push(entries);
+    }
+    tiff_images(&data, images)
+}
+
+#[test]
+fn a_cloud_optimized_geotiff_is_read_by_its_window_and_overview_only() {
+    // 40 × 36 cells of the Boulder DEM: 3 × 3 tiles of 16 at full resolution, 2 × 2 in the overview.
+    let full = load("boulder_SRTMGL3_derived.tif").crop(60, 40, 40, 36).unwrap();
+    let full = Raster { nodata: None, ..full };
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cog.tif");
+    // Every tile but the north-west one is unreadable: a window inside it still loads.
+    std::fs::write(&path, cog(&full, &(1..9).collect::<Vec<_>>(), false)).unwrap();
+    let (x0, y0) = full.transform.to_crs(2.0, 3.0);
+    let (x1, y1) = full.transform.to_crs(14.0, 15.0);
+    let window = Extent { min_x: x0 + 1e-9, min_y: y1 + 1e-9, max_x: x1 - 1e-9, max_y: y0 - 1e-9 };
+    let read = load_dem(&path, Some(&window), u64::MAX).unwrap_or_else(|e| panic!("{e}"));
+    assert_same_cells(&read, &Raster { nodata: None, ..full.crop(2, 3, 12, 12).unwrap() });
+    let err = load_dem(&path, None, u64::MAX).unwrap_err();
+    assert!(err.to_string().contains("cog.tif"), "a whole read touches the broken tiles: {err}");
+    // Every full-resolution tile unreadable: a budget of a quarter of the cells reads the
+    // overview, whose cells are the 2 × 2 means, on the full extent.
+    std::fs::write(&path, cog(&full, &[], true)).unwrap();
+    let coarse = load_dem(&path, None, (20 * 18) as u64).unwrap_or_else(|e| panic!("{e}"));
+    let expected = full.decimate(2);
+    assert_eq!((coarse.width, coarse.height), (20, 18));
+    for (a, b) in coarse.data.iter().zip(&expected.data) {
+        assert!((a - b).abs() < 1e-3, "{a} vs {b}");
+    }
+    assert_transform_close(&coarse.transform, &expected.transform, 1e-12);
+    // A budget between the levels: the overview, averaged down further to fit.
+    let smaller = load_dem(&path, None, 100).unwrap_or_else(|e| panic!("{e}"));
+    assert!(smaller.width * smaller.height <= 100, "{} × {}", smaller.width, smaller.height);
+    // 40 × 36 by 4 fits 100 cells: the overview by 2, averaged by 2 again (4 × 4 means).
+    assert_eq!((smaller.width, smaller.height), (10, 9));
+    for (a, b) in smaller.data.iter().zip(&full.decimate(4).data) {
+        assert!((a - b).abs() < 1e-3, "{a} vs {b}");
     }
 }
 

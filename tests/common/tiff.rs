@@ -32,30 +32,40 @@ pub const DATA_OFFSET: u32 = 8;
 
 /// A TIFF of the header, `data` at [`DATA_OFFSET`] and one IFD of `entries` (sorted here;
 /// values over four bytes are stored after the IFD).
-pub fn tiff_file(data: &[u8], mut entries: Vec<Entry>) -> Vec<u8> {
-    entries.sort_by_key(|entry| entry.0);
+pub fn tiff_file(data: &[u8], entries: Vec<Entry>) -> Vec<u8> {
+    tiff_images(data, vec![entries])
+}
+
+/// [`tiff_file`] with one IFD per image, chained in order (a full-resolution image and its
+/// overviews, as a Cloud-Optimized GeoTIFF holds them).
+pub fn tiff_images(data: &[u8], images: Vec<Vec<Entry>>) -> Vec<u8> {
     let mut file = b"II*\0".to_vec();
-    let ifd_offset = DATA_OFFSET as usize + data.len();
-    file.extend_from_slice(&(ifd_offset as u32).to_le_bytes());
+    file.extend_from_slice(&(DATA_OFFSET + data.len() as u32).to_le_bytes());
     file.extend_from_slice(data);
-    let mut arrays = Vec::new();
-    let arrays_at = ifd_offset + 2 + entries.len() * 12 + 4;
-    file.extend_from_slice(&(entries.len() as u16).to_le_bytes());
-    for (tag, kind, count, bytes) in &entries {
-        file.extend_from_slice(&tag.to_le_bytes());
-        file.extend_from_slice(&kind.to_le_bytes());
-        file.extend_from_slice(&count.to_le_bytes());
-        if bytes.len() <= 4 {
-            let mut inline = bytes.clone();
-            inline.resize(4, 0);
-            file.extend_from_slice(&inline);
-        } else {
-            file.extend_from_slice(&((arrays_at + arrays.len()) as u32).to_le_bytes());
-            arrays.extend_from_slice(bytes);
+    let count = images.len();
+    for (i, mut entries) in images.into_iter().enumerate() {
+        entries.sort_by_key(|entry| entry.0);
+        let ifd_offset = file.len();
+        let arrays_at = ifd_offset + 2 + entries.len() * 12 + 4;
+        let mut arrays = Vec::new();
+        file.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+        for (tag, kind, count, bytes) in &entries {
+            file.extend_from_slice(&tag.to_le_bytes());
+            file.extend_from_slice(&kind.to_le_bytes());
+            file.extend_from_slice(&count.to_le_bytes());
+            if bytes.len() <= 4 {
+                let mut inline = bytes.clone();
+                inline.resize(4, 0);
+                file.extend_from_slice(&inline);
+            } else {
+                file.extend_from_slice(&((arrays_at + arrays.len()) as u32).to_le_bytes());
+                arrays.extend_from_slice(bytes);
+            }
         }
+        let next = if i + 1 < count { arrays_at + arrays.len() } else { 0 };
+        file.extend_from_slice(&(next as u32).to_le_bytes());
+        file.extend_from_slice(&arrays);
     }
-    file.extend_from_slice(&0u32.to_le_bytes());
-    file.extend_from_slice(&arrays);
     file
 }
 

@@ -138,6 +138,22 @@ pub enum GisError {
         /// Why.
         reason: String,
     },
+    /// A window (a scene's crop extent) that does not meet the raster.
+    #[error(
+        "{}: the window [{}, {}, {}, {}] does not overlap the raster, which covers [{}, {}, {}, {}] in {crs}",
+        path.display(), window.min_x, window.min_y, window.max_x, window.max_y,
+        extent.min_x, extent.min_y, extent.max_x, extent.max_y
+    )]
+    WindowOutside {
+        /// The file.
+        path: PathBuf,
+        /// The window asked for, in the raster's CRS.
+        window: super::raster::Extent,
+        /// What the raster covers.
+        extent: super::raster::Extent,
+        /// The raster's CRS.
+        crs: super::crs::Crs,
+    },
     /// A crop window that is empty or extends past the raster.
     #[error(
         "crop window {width} × {height} at column {col0}, row {row0} does not fit in a {raster_width} × {raster_height} raster"

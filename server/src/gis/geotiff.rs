@@ -24,7 +24,7 @@ use tiff::tags::{PhotometricInterpretation, SampleFormat, Tag};
 
 use super::crs::{Crs, FOOT, US_SURVEY_FOOT};
 use super::error::GisError;
-use super::raster::{self, GeoTransform, Raster};
+use super::raster::{self, Extent, GeoTransform, Raster};
 
 /// GeoKey ids used here.
 mod key {
@@ -373,128 +373,154 @@ pub fn read_geotiff_bands(path: &Path) -> Result<Vec<Raster>, GisError> {
     read_bands(path, true)
 }
 
+/// What the tags of one image (IFD) of a TIFF say about its cells, read before decoding.
+struct Layout {
+    width: u32,
+    height: u32,
+    sample_type: SampleType,
+    bits: u16,
+    photometric: Option<u16>,
+    planar: bool,
+    samples: u16,
+}
+
+impl Layout {
+    /// The layout of the decoder's current image.
+    fn read<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>, path: &Path) -> Result<Layout, GisError> {
+        let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
+        let (width, height) = decoder.dimensions().map_err(tiff_err)?;
+        let mut first = |tag| -> Result<Option<u16>, GisError> {
+            let values =
+                decoder.find_tag(tag).and_then(|v| v.map(|v| v.into_u16_vec()).transpose()).map_err(tiff_err)?;
+            Ok(values.and_then(|v| v.first().copied()))
+        };
+        // Sample type of band 1 (formats are homogeneous, `tiff` checks that).
+        let bits = first(Tag::BitsPerSample)?.unwrap_or(1);
+        let format = first(Tag::SampleFormat)?.unwrap_or(SampleFormat::Uint.to_u16());
+        let sample_type = SampleType::from_tags(format, bits)
+            .map_err(|detail| GisError::UnsupportedSampleType { path: path.to_path_buf(), detail })?;
+        let photometric = first(Tag::PhotometricInterpretation)?;
+        let planar = first(Tag::PlanarConfiguration)? == Some(2);
+        let samples = first(Tag::SamplesPerPixel)?.unwrap_or(1);
+        Ok(Layout { width, height, sample_type, bits, photometric, planar, samples })
+    }
+
+    /// Whether the image is a palette or WhiteIsZero image, which the decoder reads only with
+    /// its PhotometricInterpretation patched (see [`with_black_is_zero`]).
+    fn needs_patch(&self) -> bool {
+        [PhotometricInterpretation::RGBPalette, PhotometricInterpretation::WhiteIsZero]
+            .iter()
+            .any(|p| self.photometric == Some(p.to_u16()))
+    }
+}
+
+/// The georeferencing, CRS and nodata value of a GeoTIFF (its first image's tags).
+struct Georeference {
+    transform: GeoTransform,
+    crs: Crs,
+    nodata: Option<f64>,
+}
+
+impl Georeference {
+    fn read<R: std::io::Read + std::io::Seek>(
+        decoder: &mut Decoder<R>,
+        path: &Path,
+        sample_type: SampleType,
+    ) -> Result<Georeference, GisError> {
+        let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
+        let bad_geo = |reason: String| GisError::BadGeoreferencing { path: path.to_path_buf(), reason };
+        let mut doubles = |tag| -> Result<Option<Vec<f64>>, GisError> {
+            decoder.find_tag(tag).and_then(|v| v.map(|v| v.into_f64_vec()).transpose()).map_err(tiff_err)
+        };
+        let tiepoints = doubles(Tag::ModelTiepointTag)?;
+        let scale = doubles(Tag::ModelPixelScaleTag)?;
+        let matrix = doubles(Tag::ModelTransformationTag)?;
+        let params = doubles(Tag::GeoDoubleParamsTag)?.unwrap_or_default();
+        let directory = decoder
+            .find_tag(Tag::GeoKeyDirectoryTag)
+            .and_then(|v| v.map(|v| v.into_u16_vec()).transpose())
+            .map_err(tiff_err)?;
+        let geokeys = match directory {
+            Some(dir) => GeoKeys::parse(&dir, &params).map_err(bad_geo)?,
+            None => GeoKeys::default(),
+        };
+        let transform =
+            transform_from_tags(tiepoints.as_deref(), scale.as_deref(), matrix.as_deref(), geokeys.pixel_is_point())
+                .map_err(bad_geo)?
+                .ok_or_else(|| GisError::NoGeoreferencing { path: path.to_path_buf() })?;
+        raster::check_transform(path, &transform)?;
+        let crs = geokeys.crs().map_err(bad_geo)?;
+        let mut nodata = match decoder.find_tag(Tag::GdalNodata).map_err(tiff_err)? {
+            Some(v) => {
+                let text = v.into_string().map_err(tiff_err)?;
+                Some(parse_nodata(&text).ok_or_else(|| GisError::Tiff {
+                    path: path.to_path_buf(),
+                    message: format!("GDAL_NODATA value \"{}\" is not a number", text.trim()),
+                })?)
+            }
+            None => None,
+        };
+        if sample_type == SampleType::F32 {
+            // Cells hold f32 values: compare against the nodata value as f32 (like GDAL does).
+            nodata = nodata.map(|v| f64::from(v as f32));
+        }
+        Ok(Georeference { transform, crs, nodata })
+    }
+}
+
+/// Decoder limits within the decoding budget of [`raster::MAX_CELLS`].
+fn limits() -> Limits {
+    let mut l = Limits::default();
+    l.decoding_buffer_size = usize::try_from(decoding_budget(raster::MAX_CELLS)).unwrap_or(usize::MAX);
+    l
+}
+
 /// [`read_geotiff`] (band 1 only, `all` false) and [`read_geotiff_bands`] (`all` true).
 fn read_bands(path: &Path, all: bool) -> Result<Vec<Raster>, GisError> {
     let bytes = std::fs::read(path).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
     let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
-    let bad_geo = |reason: String| GisError::BadGeoreferencing { path: path.to_path_buf(), reason };
-    let signature = bytes.get(..4);
-    if !matches!(signature, Some(b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+")) {
-        return Err(GisError::NotTiff { path: path.to_path_buf() });
-    }
-
+    check_signature(path, &bytes)?;
     let mut decoder = Decoder::new(Cursor::new(bytes.as_slice())).map_err(tiff_err)?;
-    let (width, height) = decoder.dimensions().map_err(tiff_err)?;
+    let layout = Layout::read(&mut decoder, path)?;
+    let (width, height) = (layout.width, layout.height);
     raster::check_dimensions(path, width.into(), height.into())?;
-
-    let shorts = |d: &mut Decoder<Cursor<&[u8]>>, tag| -> Result<Option<Vec<u16>>, GisError> {
-        d.find_tag(tag).and_then(|v| v.map(|v| v.into_u16_vec()).transpose()).map_err(tiff_err)
-    };
-    let doubles = |d: &mut Decoder<Cursor<&[u8]>>, tag| -> Result<Option<Vec<f64>>, GisError> {
-        d.find_tag(tag).and_then(|v| v.map(|v| v.into_f64_vec()).transpose()).map_err(tiff_err)
-    };
-
-    // Sample type of band 1 (formats are homogeneous, `tiff` checks that).
-    let bits = shorts(&mut decoder, Tag::BitsPerSample)?.and_then(|b| b.first().copied()).unwrap_or(1);
-    let format = shorts(&mut decoder, Tag::SampleFormat)?
-        .and_then(|f| f.first().copied())
-        .unwrap_or(SampleFormat::Uint.to_u16());
-    let sample_type = SampleType::from_tags(format, bits)
-        .map_err(|detail| GisError::UnsupportedSampleType { path: path.to_path_buf(), detail })?;
-    let photometric = shorts(&mut decoder, Tag::PhotometricInterpretation)?.and_then(|p| p.first().copied());
-    let ycbcr = (all && photometric == Some(PhotometricInterpretation::YCbCr.to_u16()) && bits == 8)
-        .then(|| YCbCr::from_tags(&mut decoder))
-        .transpose()
-        .map_err(tiff_err)?;
-    let planar = shorts(&mut decoder, Tag::PlanarConfiguration)?.and_then(|p| p.first().copied()) == Some(2);
-    let samples = shorts(&mut decoder, Tag::SamplesPerPixel)?.and_then(|p| p.first().copied()).unwrap_or(1);
-    if all && planar && samples > 1 {
+    if all && layout.planar && layout.samples > 1 {
         return Err(GisError::Tiff {
             path: path.to_path_buf(),
             message: format!(
-                "its {samples} bands are stored plane by plane; write it pixel-interleaved \
-                 (gdal_translate -co INTERLEAVE=PIXEL)"
+                "its {} bands are stored plane by plane; write it pixel-interleaved \
+                 (gdal_translate -co INTERLEAVE=PIXEL)",
+                layout.samples
             ),
         });
     }
-
-    // Georeferencing and CRS.
-    let geokeys = match shorts(&mut decoder, Tag::GeoKeyDirectoryTag)? {
-        Some(dir) => {
-            let params = doubles(&mut decoder, Tag::GeoDoubleParamsTag)?.unwrap_or_default();
-            GeoKeys::parse(&dir, &params).map_err(bad_geo)?
-        }
-        None => GeoKeys::default(),
-    };
-    let tiepoints = doubles(&mut decoder, Tag::ModelTiepointTag)?;
-    let scale = doubles(&mut decoder, Tag::ModelPixelScaleTag)?;
-    let matrix = doubles(&mut decoder, Tag::ModelTransformationTag)?;
-    let transform =
-        transform_from_tags(tiepoints.as_deref(), scale.as_deref(), matrix.as_deref(), geokeys.pixel_is_point())
-            .map_err(bad_geo)?
-            .ok_or_else(|| GisError::NoGeoreferencing { path: path.to_path_buf() })?;
-    raster::check_transform(path, &transform)?;
-    let crs = geokeys.crs().map_err(bad_geo)?;
-
-    let mut nodata = match decoder.find_tag(Tag::GdalNodata).map_err(tiff_err)? {
-        Some(v) => {
-            let text = v.into_string().map_err(tiff_err)?;
-            Some(parse_nodata(&text).ok_or_else(|| GisError::Tiff {
-                path: path.to_path_buf(),
-                message: format!("GDAL_NODATA value \"{}\" is not a number", text.trim()),
-            })?)
-        }
-        None => None,
-    };
-    if sample_type == SampleType::F32 {
-        // Cells hold f32 values: compare against the nodata value as f32 (like GDAL does).
-        nodata = nodata.map(|v| f64::from(v as f32));
-    }
-
-    let palette_code = PhotometricInterpretation::RGBPalette.to_u16();
-    let palette = if photometric == Some(palette_code) {
-        let map = shorts(&mut decoder, Tag::ColorMap)?;
-        Some(map.and_then(|m| palette_from_colormap(&m, bits)).ok_or_else(|| GisError::Tiff {
-            path: path.to_path_buf(),
-            message: "palette image without a valid ColorMap".to_string(),
-        })?)
-    } else {
-        None
-    };
+    let ycbcr = (all && layout.photometric == Some(PhotometricInterpretation::YCbCr.to_u16()) && layout.bits == 8)
+        .then(|| YCbCr::from_tags(&mut decoder))
+        .transpose()
+        .map_err(tiff_err)?;
+    let geo = Georeference::read(&mut decoder, path, layout.sample_type)?;
+    let palette = read_palette(&mut decoder, path, &layout)?;
 
     // Cell counts are capped by MAX_CELLS; the decoded bytes (padding and further samples
     // included) by the same budget, checked before decoding.
-    let budget = decoding_budget(raster::MAX_CELLS);
-    let decoded = decoded_bytes(&mut decoder).map_err(tiff_err)?;
-    if decoded > budget {
-        return Err(GisError::Tiff {
-            path: path.to_path_buf(),
-            message: format!("decoding would produce {decoded} bytes, more than the limit of {budget}"),
-        });
-    }
-    let limits = {
-        let mut l = Limits::default();
-        l.decoding_buffer_size = usize::try_from(budget).unwrap_or(usize::MAX);
-        l
-    };
-    let white_is_zero = PhotometricInterpretation::WhiteIsZero.to_u16();
-    let result = if photometric == Some(palette_code) || photometric == Some(white_is_zero) {
+    check_budget(path, decoded_bytes(&mut decoder).map_err(tiff_err)?)?;
+    let result = if layout.needs_patch() {
         let patched =
             decoder.ifd_pointer().and_then(|ifd| with_black_is_zero(&bytes, ifd.0)).ok_or_else(|| GisError::Tiff {
                 path: path.to_path_buf(),
                 message: "cannot locate the PhotometricInterpretation entry".to_string(),
             })?;
-        let mut d = Decoder::new(Cursor::new(patched.as_slice())).map_err(tiff_err)?.with_limits(limits);
+        let mut d = Decoder::new(Cursor::new(patched.as_slice())).map_err(tiff_err)?.with_limits(limits());
         d.read_image().map_err(tiff_err)?
     } else {
-        let mut d = decoder.with_limits(limits);
+        let mut d = decoder.with_limits(limits());
         d.read_image().map_err(tiff_err)?
     };
 
     // Chunky images interleave all samples of a pixel; planar ones yield plane 1 only.
     let cells = width as usize * height as usize;
     let len = result_len(&result);
-    let stride = if planar { 1 } else { len / cells };
+    let stride = if layout.planar { 1 } else { len / cells };
     if stride == 0 || len != stride * cells {
         return Err(GisError::Tiff {
             path: path.to_path_buf(),
@@ -505,9 +531,9 @@ fn read_bands(path: &Path, all: bool) -> Result<Vec<Raster>, GisError> {
         width: width as usize,
         height: height as usize,
         data: band(&result, stride, index),
-        nodata,
-        transform,
-        crs,
+        nodata: geo.nodata,
+        transform: geo.transform,
+        crs: geo.crs,
         palette: palette.clone(),
     };
     let first = raster(0);
@@ -520,6 +546,168 @@ fn read_bands(path: &Path, all: bool) -> Result<Vec<Raster>, GisError> {
         ycbcr.to_rgb(y, cb, cr);
     }
     Ok(bands)
+}
+
+/// Refuses bytes that do not start with a TIFF or BigTIFF signature.
+fn check_signature(path: &Path, bytes: &[u8]) -> Result<(), GisError> {
+    if matches!(bytes.get(..4), Some(b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+")) {
+        Ok(())
+    } else {
+        Err(GisError::NotTiff { path: path.to_path_buf() })
+    }
+}
+
+/// Refuses decoding `decoded` bytes beyond the budget of [`raster::MAX_CELLS`].
+fn check_budget(path: &Path, decoded: u64) -> Result<(), GisError> {
+    let budget = decoding_budget(raster::MAX_CELLS);
+    if decoded > budget {
+        return Err(GisError::Tiff {
+            path: path.to_path_buf(),
+            message: format!("decoding would produce {decoded} bytes, more than the limit of {budget}"),
+        });
+    }
+    Ok(())
+}
+
+/// The 8-bit palette of a palette image (`None` for others).
+fn read_palette<R: std::io::Read + std::io::Seek>(
+    decoder: &mut Decoder<R>,
+    path: &Path,
+    layout: &Layout,
+) -> Result<Option<Vec<[u8; 3]>>, GisError> {
+    if layout.photometric != Some(PhotometricInterpretation::RGBPalette.to_u16()) {
+        return Ok(None);
+    }
+    let map = decoder
+        .find_tag(Tag::ColorMap)
+        .and_then(|v| v.map(|v| v.into_u16_vec()).transpose())
+        .map_err(|e| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() })?;
+    Ok(Some(map.and_then(|m| palette_from_colormap(&m, layout.bits)).ok_or_else(|| GisError::Tiff {
+        path: path.to_path_buf(),
+        message: "palette image without a valid ColorMap".to_string(),
+    })?))
+}
+
+/// Reads band 1 of a GeoTIFF's cells meeting `window` (CRS coordinates; all cells without
+/// one), decoding only the strips or tiles that hold them, from the coarsest of its
+/// reduced-resolution images (a Cloud-Optimized GeoTIFF's overviews) that still has at least
+/// the resolution `max_cells` cells over the window allow ([`raster::fit_factor`]). The file
+/// is read through a buffered reader: strips and tiles outside the window, and levels not
+/// chosen, are never read from disk. Palette and WhiteIsZero images (land covers, not DEMs)
+/// are read whole and cropped.
+pub fn read_geotiff_window(path: &Path, window: Option<&Extent>, max_cells: u64) -> Result<Raster, GisError> {
+    let tiff_err = |e: tiff::TiffError| GisError::Tiff { path: path.to_path_buf(), message: e.to_string() };
+    let file = std::fs::File::open(path).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
+    let mut reader = std::io::BufReader::new(file);
+    let mut signature = [0u8; 4];
+    std::io::Read::read_exact(&mut reader, &mut signature)
+        .map_err(|_| GisError::NotTiff { path: path.to_path_buf() })?;
+    check_signature(path, &signature)?;
+    std::io::Seek::rewind(&mut reader).map_err(|source| GisError::Io { path: path.to_path_buf(), source })?;
+    let mut decoder = Decoder::new(reader).map_err(tiff_err)?.with_limits(limits());
+    let full = Layout::read(&mut decoder, path)?;
+    raster::check_dimensions(path, full.width.into(), full.height.into())?;
+    let geo = Georeference::read(&mut decoder, path, full.sample_type)?;
+    let (full_w, full_h) = (full.width as usize, full.height as usize);
+    let (col0, row0, width, height) = match window {
+        None => (0, 0, full_w, full_h),
+        Some(w) => raster::window(&geo.transform, full_w, full_h, w).ok_or_else(|| GisError::WindowOutside {
+            path: path.to_path_buf(),
+            window: *w,
+            extent: raster::extent_of(&geo.transform, full_w, full_h),
+            crs: geo.crs,
+        })?,
+    };
+    if full.needs_patch() {
+        return read_geotiff(path)?.crop(col0, row0, width, height);
+    }
+    // The coarsest overview at most `max_factor` coarser (image 0: the full resolution).
+    let max_factor = raster::fit_factor(width, height, max_cells);
+    let (mut level, mut factor) = (0usize, 1usize);
+    let mut index = 0usize;
+    while decoder.more_images() {
+        decoder.next_image().map_err(tiff_err)?;
+        index += 1;
+        let subfile = decoder.find_tag_unsigned::<u32>(Tag::NewSubfileType).map_err(tiff_err)?.unwrap_or(0);
+        let layout = Layout::read(&mut decoder, path)?;
+        if subfile & 1 == 0 || layout.width == 0 || layout.sample_type != full.sample_type {
+            continue;
+        }
+        let f = full_w.div_ceil(layout.width as usize);
+        // An overview of a whole factor of the full grid (GDAL's: ceil(width / f) cells).
+        if f > factor
+            && f <= max_factor
+            && (layout.height as usize) == full_h.div_ceil(f)
+            && (layout.width as usize) == full_w.div_ceil(f)
+        {
+            (level, factor) = (index, f);
+        }
+    }
+    decoder.seek_to_image(level).map_err(tiff_err)?;
+    let layout = Layout::read(&mut decoder, path)?;
+    // The window on the chosen level's grid.
+    let (c0, r0) = (col0 / factor, row0 / factor);
+    let (c1, r1) = (
+        (col0 + width).div_ceil(factor).min(layout.width as usize),
+        (row0 + height).div_ceil(factor).min(layout.height as usize),
+    );
+    let (w, h) = (c1 - c0, r1 - r0);
+    let (chunk_w, chunk_h) = decoder.chunk_dimensions();
+    let (chunk_w, chunk_h) = (chunk_w.max(1) as usize, chunk_h.max(1) as usize);
+    let across = (layout.width as usize).div_ceil(chunk_w);
+    let (cc0, cc1) = (c0 / chunk_w, (c1 - 1) / chunk_w);
+    let (cr0, cr1) = (r0 / chunk_h, (r1 - 1) / chunk_h);
+    let chunks = ((cc1 - cc0 + 1) * (cr1 - cr0 + 1)) as u64;
+    let per_chunk =
+        (chunk_w * chunk_h) as u64 * u64::from(layout.samples.max(1)) * u64::from(layout.bits.div_ceil(8).max(1));
+    check_budget(path, chunks.saturating_mul(per_chunk))?;
+    let fill = geo.nodata.unwrap_or(f64::NAN);
+    let mut data = vec![fill; w * h];
+    for cr in cr0..=cr1 {
+        for cc in cc0..=cc1 {
+            // Chunk indices of the first plane (planar images store plane 1's chunks first).
+            let chunk = u32::try_from(cr * across + cc)
+                .map_err(|_| GisError::Tiff { path: path.to_path_buf(), message: "too many strips or tiles".into() })?;
+            let result = decoder.read_chunk(chunk).map_err(tiff_err)?;
+            let (dw, dh) = decoder.chunk_data_dimensions(chunk);
+            let (dw, dh) = (dw as usize, dh as usize);
+            let len = result_len(&result);
+            let stride = if layout.planar { 1 } else { usize::from(layout.samples.max(1)) };
+            if len != dw * dh * stride {
+                return Err(GisError::Tiff {
+                    path: path.to_path_buf(),
+                    message: format!("decoded {len} samples for a chunk of {dw} × {dh} pixels"),
+                });
+            }
+            let values = band(&result, stride, 0);
+            let (x0, y0) = (cc * chunk_w, cr * chunk_h);
+            for y in y0.max(r0)..(y0 + dh).min(r1) {
+                for x in x0.max(c0)..(x0 + dw).min(c1) {
+                    data[(y - r0) * w + (x - c0)] = values[(y - y0) * dw + (x - x0)];
+                }
+            }
+        }
+    }
+    // The level's cells span the full extent (GDAL's overviews: ceil(width / f) cells).
+    let t = geo.transform;
+    let cell_width = t.cell_width * full_w as f64 / f64::from(layout.width);
+    let cell_height = t.cell_height * full_h as f64 / f64::from(layout.height);
+    let out = Raster {
+        width: w,
+        height: h,
+        data,
+        nodata: geo.nodata,
+        transform: GeoTransform {
+            origin_x: t.origin_x + c0 as f64 * cell_width,
+            origin_y: t.origin_y - r0 as f64 * cell_height,
+            cell_width,
+            cell_height,
+        },
+        crs: geo.crs,
+        palette: None,
+    };
+    raster::check_not_all_nodata(path, &out)?;
+    Ok(out)
 }
 
 /// The YCbCr → RGB conversion of a YCbCr GeoTIFF (TIFF 6.0 section 21; what JPEG-compressed

@@ -4,6 +4,7 @@
 
 pub mod ascii_grid;
 pub mod crs;
+pub mod dem;
 pub mod dequantize;
 pub mod error;
 pub mod frame;
@@ -15,6 +16,7 @@ pub mod warp;
 
 pub use ascii_grid::read_ascii_grid;
 pub use crs::Crs;
+pub use dem::load_dem;
 pub use error::GisError;
 pub use frame::LocalFrame;
 pub use geotiff::{

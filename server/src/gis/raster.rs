@@ -106,13 +106,7 @@ impl Raster {
 
     /// The rectangle the raster covers in CRS coordinates.
     pub fn extent(&self) -> Extent {
-        let t = &self.transform;
-        Extent {
-            min_x: t.origin_x,
-            max_x: t.origin_x + self.width as f64 * t.cell_width,
-            max_y: t.origin_y,
-            min_y: t.origin_y - self.height as f64 * t.cell_height,
-        }
+        extent_of(&self.transform, self.width, self.height)
     }
 
     /// CRS coordinates of the centre of a cell (no range check).
@@ -218,13 +212,7 @@ impl Raster {
     /// The cells (column, row, width, height) whose area meets `extent` (CRS coordinates);
     /// `None` if it does not overlap the raster.
     pub fn window_of(&self, extent: &Extent) -> Option<(usize, usize, usize, usize)> {
-        let (c0, r0) = self.transform.to_grid(extent.min_x, extent.max_y);
-        let (c1, r1) = self.transform.to_grid(extent.max_x, extent.min_y);
-        let clamp = |v: f64, n: usize| v.clamp(0.0, n as f64);
-        // Clamped to 0..=n, so the casts are in range.
-        let (c0, c1) = (clamp(c0.floor(), self.width) as usize, clamp(c1.ceil(), self.width) as usize);
-        let (r0, r1) = (clamp(r0.floor(), self.height) as usize, clamp(r1.ceil(), self.height) as usize);
-        (c1 > c0 && r1 > r0).then_some((c0, r0, c1 - c0, r1 - r0))
+        window(&self.transform, self.width, self.height, extent)
     }
 
     /// The raster averaged down by `factor` along both axes: each cell the mean of the valid
@@ -265,6 +253,42 @@ impl Raster {
             palette: self.palette.clone(),
         }
     }
+}
+
+/// The rectangle a `width` × `height` grid placed by `t` covers.
+pub fn extent_of(t: &GeoTransform, width: usize, height: usize) -> Extent {
+    Extent {
+        min_x: t.origin_x,
+        max_x: t.origin_x + width as f64 * t.cell_width,
+        max_y: t.origin_y,
+        min_y: t.origin_y - height as f64 * t.cell_height,
+    }
+}
+
+/// The cells (column, row, width, height) of a `width` × `height` grid placed by `t` whose
+/// area meets `extent`; `None` if none does.
+pub fn window(t: &GeoTransform, width: usize, height: usize, extent: &Extent) -> Option<(usize, usize, usize, usize)> {
+    let (c0, r0) = t.to_grid(extent.min_x, extent.max_y);
+    let (c1, r1) = t.to_grid(extent.max_x, extent.min_y);
+    let clamp = |v: f64, n: usize| v.clamp(0.0, n as f64);
+    // Clamped to 0..=n, so the casts are in range.
+    let (c0, c1) = (clamp(c0.floor(), width) as usize, clamp(c1.ceil(), width) as usize);
+    let (r0, r1) = (clamp(r0.floor(), height) as usize, clamp(r1.ceil(), height) as usize);
+    (c1 > c0 && r1 > r0).then_some((c0, r0, c1 - c0, r1 - r0))
+}
+
+/// The smallest whole factor `f` with ⌈width / f⌉ × ⌈height / f⌉ ≤ `max_cells` (1 when the
+/// grid fits): how much a DEM is averaged down to fit a terrain's cell budget.
+pub fn fit_factor(width: usize, height: usize, max_cells: u64) -> usize {
+    let cells = (width as u64).saturating_mul(height as u64);
+    if cells <= max_cells.max(1) {
+        return 1;
+    }
+    let mut factor = ((cells as f64 / max_cells.max(1) as f64).sqrt().floor() as usize).max(2);
+    while (width.div_ceil(factor) as u64).saturating_mul(height.div_ceil(factor) as u64) > max_cells.max(1) {
+        factor += 1;
+    }
+    factor
 }
 
 /// For a fractional position `g` between cell centres (centre i at `g = i`), the lower index

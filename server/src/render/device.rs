@@ -44,7 +44,10 @@ impl Gpu {
                 required_features: wgpu::Features::empty(),
                 // The G-buffer writes 44 bytes per pixel to five targets, more than the downlevel
                 // defaults (32 bytes, 4 targets); lavapipe and desktop GPUs allow 128 and 8.
+                // A large terrain's vertex buffer (72 bytes a vertex: 3.7 M DEM cells fill
+                // wgpu's default 256 MiB) takes what the adapter allows.
                 required_limits: wgpu::Limits {
+                    max_buffer_size: adapter.limits().max_buffer_size,
                     max_color_attachment_bytes_per_sample: adapter.limits().max_color_attachment_bytes_per_sample,
                     max_color_attachments: adapter.limits().max_color_attachments,
                     ..wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits())

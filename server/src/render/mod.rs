@@ -45,6 +45,9 @@ pub enum RenderError {
     /// A validation or out-of-memory error reported by wgpu while rendering.
     #[error("GPU error during {stage}: {message}")]
     Gpu { stage: &'static str, message: String },
+    /// Geometry larger than the adapter's largest buffer.
+    #[error("{what} need a buffer of {} MiB, more than the graphics adapter allows ({} MiB); {hint}", bytes >> 20, limit >> 20)]
+    TooLarge { what: String, bytes: u64, limit: u64, hint: &'static str },
     /// Waiting for the GPU or mapping the read-back buffer failed.
     #[error("reading the frame back from the GPU failed: {0}")]
     Readback(String),

@@ -114,7 +114,7 @@ impl Scene {
     /// Builds a scene from a parsed config; relative paths are resolved against `base`.
     pub fn from_config(config: &SceneConfig, base: &Path) -> Result<Scene, SceneError> {
         let dem_path = base.join(&config.terrain.dem);
-        let mut dem = fit_dem(gis::load_raster(&dem_path)?, &config.terrain, &dem_path)?;
+        let mut dem = load_dem(&config.terrain, &dem_path)?;
         // The DEM's full CRS definition, needed only to bring other data into the scene: a DEM
         // whose CRS has none still loads (its frame needs only the unit).
         let scene_crs: Result<CrsDefinition, ReprojectError> = match &config.terrain.crs {
@@ -315,51 +315,29 @@ fn optional_crs(text: Option<&str>, key: &str) -> Result<Option<CrsDefinition>, 
 
 /// A land cover in the scene CRS: a raster reprojected if needed, or GeoJSON polygons
 /// rasterized over the terrain; `what` names its options in messages.
-/// The DEM as the scene uses it: cropped to `terrain.extent`, then averaged down to at most
-/// `terrain.max_cells` cells.
-fn fit_dem(dem: gis::Raster, terrain: &config::TerrainConfig, path: &Path) -> Result<gis::Raster, SceneError> {
-    let file = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
-    let dem = match terrain.extent {
-        None => dem,
+/// The DEM as the scene uses it: the cells meeting `terrain.extent`, at most
+/// `terrain.max_cells` of them ([`gis::load_dem`]).
+fn load_dem(terrain: &config::TerrainConfig, path: &Path) -> Result<gis::Raster, SceneError> {
+    let window = match terrain.extent {
+        None => None,
         Some([min_x, min_y, max_x, max_y]) => {
             if !([min_x, min_y, max_x, max_y].iter().all(|v| v.is_finite()) && max_x > min_x && max_y > min_y) {
                 return Err(SceneError::Invalid(
                     "terrain.extent must be [min_x, min_y, max_x, max_y] with min < max, in the DEM's CRS".into(),
                 ));
             }
-            let extent = gis::Extent { min_x, min_y, max_x, max_y };
-            let Some((col, row, width, height)) = dem.window_of(&extent) else {
-                let e = dem.extent();
-                return Err(SceneError::Invalid(format!(
-                    "terrain.extent [{min_x}, {min_y}, {max_x}, {max_y}] does not overlap the DEM {file}, which covers \
-                     [{}, {}, {}, {}] in {}",
-                    e.min_x, e.min_y, e.max_x, e.max_y, dem.crs
-                )));
-            };
-            dem.crop(col, row, width, height)?
+            Some(gis::Extent { min_x, min_y, max_x, max_y })
         }
     };
     if terrain.max_cells < 4 {
         return Err(SceneError::Invalid("terrain.max_cells must be at least 4 (a 2 × 2 terrain)".into()));
     }
-    let cells = (dem.width * dem.height) as u64;
-    if cells <= terrain.max_cells {
-        return Ok(dem);
-    }
-    // The smallest whole factor f with ceil(w/f) × ceil(h/f) ≤ max_cells.
-    let mut factor = ((cells as f64 / terrain.max_cells as f64).sqrt().ceil() as usize).max(2);
-    while (dem.width.div_ceil(factor) * dem.height.div_ceil(factor)) as u64 > terrain.max_cells {
-        factor += 1;
-    }
-    let fitted = dem.decimate(factor);
-    info!(
-        file,
-        from = %format!("{} × {}", dem.width, dem.height),
-        to = %format!("{} × {}", fitted.width, fitted.height),
-        factor,
-        "DEM averaged down to terrain.max_cells"
-    );
-    Ok(fitted)
+    let dem = gis::load_dem(path, window.as_ref(), terrain.max_cells).map_err(|e| match e {
+        GisError::WindowOutside { .. } => SceneError::Invalid(format!("terrain.extent: {e}")),
+        other => SceneError::Gis(other),
+    })?;
+    info!(cells = %format!("{} × {}", dem.width, dem.height), cell = dem.transform.cell_width, "DEM loaded");
+    Ok(dem)
 }
 
 fn load_landcover(

@@ -153,7 +153,7 @@ impl SceneGpu {
         let (device, queue) = (&gpu.device, &gpu.queue);
         let mut up = Uploader::new(device, queue, pass, disk);
         let terrain_lod = TerrainLod::build(&scene.terrain, TERRAIN_CHUNK_CELLS, TERRAIN_LEVELS);
-        let terrain = up.terrain(&terrain_lod.mesh, &scene.terrain.drape);
+        let terrain = up.terrain(&terrain_lod.mesh, &scene.terrain.drape)?;
         let segments = crate::prep::creases::crease_lines(&scene.terrain);
         info!(segments = segments.len(), "terrain crease lines");
         let creases = crease_buffer(device, &segments);

@@ -138,7 +138,23 @@ impl<'a> Uploader<'a> {
 
     /// The terrain's mesh with its drape (`scene::cover`) as the texture: colours in rgb, the
     /// land-cover class in alpha, its mip levels filtered by [`Drape::mip_chain`].
-    pub(super) fn terrain(&mut self, mesh: &Mesh, drape: &Drape) -> GpuMesh {
+    /// A terrain larger than the adapter's largest buffer is an error that says so.
+    pub(super) fn terrain(&mut self, mesh: &Mesh, drape: &Drape) -> Result<GpuMesh, RenderError> {
+        let limit = self.device.limits().max_buffer_size;
+        let vertex_bytes = (mesh.positions.len() * std::mem::size_of::<Vertex>()) as u64;
+        let index_bytes = 4 * mesh.indices.len() as u64;
+        if vertex_bytes.max(index_bytes) > limit {
+            return Err(RenderError::TooLarge {
+                what: format!(
+                    "the terrain's {} vertices and {} triangles",
+                    mesh.positions.len(),
+                    mesh.indices.len() / 3
+                ),
+                bytes: vertex_bytes.max(index_bytes),
+                limit,
+                hint: "lower `terrain.max_cells` or crop with `terrain.extent` in the scene file",
+            });
+        }
         let (vertices, indices) = self.vertex_buffers(mesh, None, &[]);
         let chain = drape.mip_chain();
         self.bytes += chain.iter().map(|level| 4 * u64::from(level.width()) * u64::from(level.height())).sum::<u64>();
@@ -151,7 +167,7 @@ impl<'a> Uploader<'a> {
             average_color: Vec3f(drape.mean_linear()),
         };
         let material = self.bind_material("terrain", &uniform, &view);
-        GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material, surface: Surface::Terrain }
+        Ok(GpuMesh { vertices, indices, index_count: mesh.indices.len() as u32, material, surface: Surface::Terrain })
     }
 
     /// The vertex and index buffers of `mesh` (see [`Uploader::lit_mesh`]).
