@@ -94,8 +94,9 @@ async fn main() -> Result<()> {
     let scene = Arc::new(Scene::load(&args.scene)?);
     let gpu = Arc::new(Gpu::new()?);
     let adapter = gpu.adapter_info.name.clone();
-    let sessions = (args.followers + 8).to_string();
-    let mut config = ServerConfig::try_parse_from(["serve", "--addr", "127.0.0.1:0", "--max-sessions", &sessions])?;
+    // Followers take no rendering slot (`--max-sessions`); their own limit fits the audience.
+    let followers = args.followers.max(1000).to_string();
+    let mut config = ServerConfig::try_parse_from(["serve", "--addr", "127.0.0.1:0", "--max-followers", &followers])?;
     config.scene = args.scene.clone();
     config.data_dir = std::env::temp_dir().join("landsketch-bench-meeting");
     let server = Server::bind(config).await?;

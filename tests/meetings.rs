@@ -4,7 +4,7 @@
 mod common;
 
 use common::server::{TestServer, client, get, json_of};
-use common::ws::{Incoming, Socket, connect, next_frame, receive, send};
+use common::ws::{Incoming, Socket, connect, connect_with_receive_buffer, next_frame, receive, send};
 use landsketch::api::ws::FrameHeader;
 use serde_json::{Value, json};
 use std::collections::HashMap;
@@ -253,35 +253,50 @@ async fn a_follower_detaches_with_the_presenters_view_and_rejoins() {
 #[tokio::test]
 async fn a_follower_that_does_not_read_holds_up_neither_the_presenter_nor_the_others() {
     let dir = tempfile::tempdir().expect("temporary directory");
-    let server = TestServer::start(dir.path(), |_| {});
+    // Sends may wait for the sleeper longer than the default deadline on a loaded machine; a
+    // send buffer of 64 KiB per connection.
+    let server = TestServer::start(dir.path(), |c| {
+        c.ws_send_timeout_s = 120;
+        c.send_buffer_bytes = 64 << 10;
+    });
     let server = &server;
-    let (mut presenter, meeting) = presenter(server).await;
-    let code = meeting["code"].as_str().expect("code").to_owned();
+    // Frames of several kilobytes (moving at 512 × 384): the sleeper's 4 KiB receive window
+    // and its connection's send buffer fill after a few.
+    const LARGE: &str = "width=1024&height=768&format=jpeg&quality=90";
+    let mut presenter = connect(server, LARGE).await;
     next_frame(&mut presenter).await;
-    let mut reader = connect(server, &format!("{VIEW}&meeting={code}")).await;
-    let mut sleeper = connect(server, &format!("{VIEW}&meeting={code}")).await;
+    send(&mut presenter, json!({"type": "open_meeting"})).await;
+    let (meeting, _) = until(&mut presenter, "meeting").await;
+    let code = meeting["code"].as_str().expect("code").to_owned();
+    let mut reader = connect(server, &format!("{LARGE}&meeting={code}")).await;
+    let mut sleeper = connect_with_receive_buffer(server, &format!("{LARGE}&meeting={code}"), 4096).await;
     for follower in [&mut reader, &mut sleeper] {
         until(follower, "meeting").await;
         next_frame(follower).await;
     }
-    // The sleeper reads nothing while the presenter moves twelve times.
-    let mut last = 0;
-    for _ in 0..12 {
+    // The sleeper reads nothing while the presenter moves sixteen times; the reader reads
+    // each frame as it comes.
+    let (mut last, mut bytes, mut seen) = (0, 0, HashMap::new());
+    for _ in 0..16 {
         send(&mut presenter, json!({"type": "move", "yaw": 10, "forward": 1})).await;
-        let (_, _, header, _) = tokio::time::timeout(Duration::from_secs(30), next_frame(&mut presenter))
+        let (_, _, header, frame) = tokio::time::timeout(Duration::from_secs(60), next_frame(&mut presenter))
             .await
             .expect("the presenter's frame");
-        last = header.frame_id;
+        (last, bytes) = (header.frame_id, bytes + frame.len());
+        let got = tokio::time::timeout(Duration::from_secs(60), frames_until(&mut reader, last))
+            .await
+            .expect("the reading follower keeps up");
+        seen.extend(got);
     }
-    let seen = tokio::time::timeout(Duration::from_secs(30), frames_until(&mut reader, last))
-        .await
-        .expect("the reading follower keeps up");
-    assert!(seen.contains_key(&last));
-    // Woken, the sleeper catches up to the newest frame (skipping what it missed, if anything).
-    let caught = tokio::time::timeout(Duration::from_secs(30), frames_until(&mut sleeper, last))
+    assert!(bytes > 4 * (64 << 10), "{bytes} bytes of frames are too few to fill the buffers");
+    assert!(seen.contains_key(&last) && seen.len() >= 16, "the reader got {} of 16 frames", seen.len());
+    // Woken, the sleeper catches up to the newest frame, skipping what did not fit.
+    let caught = tokio::time::timeout(Duration::from_secs(60), frames_until(&mut sleeper, last))
         .await
         .expect("the sleeping follower catches up");
-    assert!(caught.contains_key(&last) && caught.len() <= seen.len() + 1, "{} frames", caught.len());
+    // (The newest may be the still that follows the last move.)
+    assert!(caught.keys().max().is_some_and(|&id| id >= last), "the sleeper got the newest frame");
+    assert!(caught.len() < seen.len(), "the sleeper skipped frames: {} of {}", caught.len(), seen.len());
 }
 
 #[tokio::test]
@@ -310,6 +325,81 @@ async fn followers_are_told_when_the_meeting_ends_and_go_on_alone() {
         assert_eq!(error["code"], "conflict");
         assert_eq!(get(&server.url(&format!("/api/meetings/{code}"))).await.status().as_u16(), 404);
     }
+}
+
+/// The HTTP status a WebSocket upgrade with `query` is refused with (panics if accepted).
+async fn refused(server: &TestServer, query: &str) -> u16 {
+    match tokio_tungstenite::connect_async(server.ws_url(query)).await {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => response.status().as_u16(),
+        Err(other) => panic!("upgrade failed otherwise: {other}"),
+        Ok(_) => panic!("the upgrade with {query} was accepted"),
+    }
+}
+
+#[tokio::test]
+async fn followers_take_no_rendering_slot_and_going_on_alone_needs_one() {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let server = TestServer::start(dir.path(), |c| {
+        c.max_sessions = 1;
+        c.max_followers = 2;
+    });
+    let server = &server;
+    // The presenter holds the one rendering slot; another session that renders is refused,
+    // followers are not, up to --max-followers.
+    let (mut presenter, meeting) = presenter(server).await;
+    let code = meeting["code"].as_str().expect("code").to_owned();
+    assert_eq!(refused(server, VIEW).await, 503);
+    let mut a = connect(server, &format!("{VIEW}&meeting={code}")).await;
+    let mut b = connect(server, &format!("{VIEW}&meeting={code}")).await;
+    for follower in [&mut a, &mut b] {
+        next_frame(follower).await;
+    }
+    assert_eq!(refused(server, &format!("{VIEW}&meeting={code}")).await, 503);
+    assert_eq!(metric(server, "landsketch_ws_sessions").await, 1.0);
+    assert_eq!(metric(server, "landsketch_ws_followers").await, 2.0);
+
+    // Detaching needs a rendering slot: refused, and the follower goes on following.
+    send(&mut a, json!({"type": "detach"})).await;
+    let (error, _) = until(&mut a, "error").await;
+    assert_eq!(error["code"], "busy");
+    assert!(error["message"].as_str().is_some_and(|m| m.contains("stay with the meeting")), "{error}");
+    send(&mut presenter, json!({"type": "camera", "yaw": 77})).await;
+    loop {
+        let (_, frame, _, _) = next_frame(&mut a).await;
+        if frame["camera"]["yaw"] == 77.0 {
+            break;
+        }
+    }
+
+    // The meeting ends while the presenter keeps its slot: the followers cannot go on alone;
+    // each is told so, then closed with 1013 (try again later).
+    send(&mut presenter, json!({"type": "close_meeting"})).await;
+    for follower in [&mut a, &mut b] {
+        until(follower, "meeting_ended").await;
+        let (error, _) = until(follower, "error").await;
+        assert_eq!(error["code"], "busy");
+        loop {
+            match receive(follower).await {
+                Incoming::Closed(reason) => {
+                    assert!(reason.is_some_and(|r| r.contains("no rendering session is free")));
+                    break;
+                }
+                Incoming::Json(_) | Incoming::Frame(..) => {}
+            }
+        }
+    }
+    // The presenter leaves: its slot is free for a session of its own.
+    presenter.close(None).await.expect("close");
+    for _ in 0..100 {
+        if metric(server, "landsketch_ws_sessions").await == 0.0
+            && metric(server, "landsketch_ws_followers").await == 0.0
+        {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let mut alone = connect(server, VIEW).await;
+    next_frame(&mut alone).await;
 }
 
 /// The camera of a fresh session (the scene's default camera).

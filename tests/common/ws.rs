@@ -23,6 +23,20 @@ pub async fn connect(server: &TestServer, query: &str) -> Socket {
     socket
 }
 
+/// [`connect`] with a receive buffer of `bytes` (set before connecting, so the TCP window
+/// stays that small): a client whose buffers fill after a few frames when it does not read.
+pub async fn connect_with_receive_buffer(server: &TestServer, query: &str, bytes: u32) -> Socket {
+    let address = server.url("").trim_start_matches("http://").trim_end_matches('/').to_string();
+    let address: std::net::SocketAddr = address.parse().expect("loopback address");
+    let tcp = tokio::net::TcpSocket::new_v4().expect("socket");
+    tcp.set_recv_buffer_size(bytes).expect("SO_RCVBUF");
+    let stream = tcp.connect(address).await.expect("TCP connect");
+    let (socket, _) = tokio_tungstenite::client_async(server.ws_url(query), MaybeTlsStream::Plain(stream))
+        .await
+        .expect("WebSocket handshake");
+    socket
+}
+
 pub async fn receive(socket: &mut Socket) -> Incoming {
     loop {
         let message = tokio::time::timeout(Duration::from_secs(30), socket.next()).await.expect("a message in time");

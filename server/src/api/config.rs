@@ -88,9 +88,13 @@ pub struct ServerConfig {
     /// Largest WebSocket message a client may send, in bytes.
     #[arg(long, env = "LANDSKETCH_WS_MAX_MESSAGE", default_value_t = 64 << 10)]
     pub ws_max_message: usize,
-    /// Concurrent WebSocket sessions; more are refused with 503.
+    /// Concurrent WebSocket sessions rendering their own view; more are refused with 503.
     #[arg(long, env = "LANDSKETCH_MAX_SESSIONS", default_value_t = 64)]
     pub max_sessions: usize,
+    /// Concurrent WebSocket sessions following a meeting (they render nothing: the presenter's
+    /// frames are shared); more are refused with 503.
+    #[arg(long, env = "LANDSKETCH_MAX_FOLLOWERS", default_value_t = 1000)]
+    pub max_followers: usize,
     /// Seconds without a client message after which a WebSocket session is closed.
     #[arg(long, env = "LANDSKETCH_IDLE_TIMEOUT", default_value_t = 300)]
     pub idle_timeout_s: u64,
@@ -98,6 +102,11 @@ pub struct ServerConfig {
     /// for that long is disconnected (its session slot is freed).
     #[arg(long, env = "LANDSKETCH_WS_SEND_TIMEOUT", default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=3600))]
     pub ws_send_timeout_s: u64,
+    /// Kernel send buffer of each connection, in bytes (0: the system's own, which grows to
+    /// 4 MiB on Linux): bounds what a client that does not read holds, and lets a meeting
+    /// follower that falls behind skip to the newest frame sooner.
+    #[arg(long, env = "LANDSKETCH_SEND_BUFFER_BYTES", default_value_t = 1 << 20)]
+    pub send_buffer_bytes: usize,
     /// Milliseconds of rest after the last control before a session gets its full-quality still.
     #[arg(long, env = "LANDSKETCH_STILL_DELAY_MS", default_value_t = 150)]
     pub still_delay_ms: u64,
@@ -184,6 +193,11 @@ impl ServerConfig {
     /// `--body-timeout-s` as a duration.
     pub fn body_timeout(&self) -> Duration {
         Duration::from_secs(self.body_timeout_s)
+    }
+
+    /// `--send-buffer-bytes`, `None` for the system's own.
+    pub fn send_buffer(&self) -> Option<usize> {
+        (self.send_buffer_bytes > 0).then_some(self.send_buffer_bytes)
     }
 
     /// `--ws-send-timeout-s` as a duration.

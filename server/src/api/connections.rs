@@ -26,11 +26,15 @@ use tower_service::Service;
 /// Accepts connections until `stopping` turns `true`, then lets open requests finish and
 /// returns. Each connection is served by hyper's HTTP/1 with upgrades (WebSockets) and
 /// closed when its headers, or the next request on a kept-alive connection, do not arrive
-/// within `header_timeout`.
+/// within `header_timeout`. With `send_buffer`, each connection's kernel send buffer is that
+/// many bytes instead of growing to the system's maximum (4 MiB on Linux): what a client that
+/// does not read can hold of the server's memory, and how soon a meeting follower that falls
+/// behind skips to the newest frame.
 pub async fn serve(
     listener: TcpListener,
     router: Router,
     header_timeout: Duration,
+    send_buffer: Option<usize>,
     mut stopping: watch::Receiver<bool>,
 ) -> std::io::Result<()> {
     let mut make_service = router.into_make_service_with_connect_info::<SocketAddr>();
@@ -49,6 +53,11 @@ pub async fn serve(
             Some(_) = connections.join_next() => continue,
             () = stopped(&mut stopping) => break,
         };
+        if let Some(bytes) = send_buffer
+            && let Err(error) = socket2::SockRef::from(&stream).set_send_buffer_size(bytes)
+        {
+            tracing::debug!(%peer, %error, "cannot set the send buffer");
+        }
         let Ok(service) = make_service.call(peer).await;
         let mut stop = stopping.clone();
         connections.spawn(async move {

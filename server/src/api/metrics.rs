@@ -64,8 +64,10 @@ pub struct Metrics {
     pub queue_depth: Gauge,
     /// REST renders refused because the queue was full.
     pub queue_rejected: Counter,
-    /// Open WebSocket sessions.
+    /// Open WebSocket sessions that render their own view (the `--max-sessions` slots).
     pub sessions: Gauge,
+    /// Open WebSocket sessions following a meeting (they render nothing; `--max-followers`).
+    pub followers: Gauge,
     /// WebSocket sessions opened since the start.
     pub sessions_opened: Counter,
     /// Frames sent over WebSockets, by kind.
@@ -110,6 +112,7 @@ impl Metrics {
             queue_depth: Gauge::default(),
             queue_rejected: Counter::default(),
             sessions: Gauge::default(),
+            followers: Gauge::default(),
             sessions_opened: Counter::default(),
             frames_sent: Family::default(),
             ws_bad_messages: Counter::default(),
@@ -134,7 +137,8 @@ impl Metrics {
         );
         r.register("render_queue_depth", "Renders waiting for the renderer", metrics.queue_depth.clone());
         r.register("render_queue_rejected", "REST renders refused with 503", metrics.queue_rejected.clone());
-        r.register("ws_sessions", "Open WebSocket sessions", metrics.sessions.clone());
+        r.register("ws_sessions", "Open WebSocket sessions rendering their own view", metrics.sessions.clone());
+        r.register("ws_followers", "Open WebSocket sessions following a meeting", metrics.followers.clone());
         r.register("ws_sessions_opened", "WebSocket sessions opened", metrics.sessions_opened.clone());
         r.register("ws_frames_sent", "Frames sent over WebSockets by kind", metrics.frames_sent.clone());
         r.register("ws_bad_messages", "WebSocket messages answered with an error", metrics.ws_bad_messages.clone());

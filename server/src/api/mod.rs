@@ -400,7 +400,13 @@ impl Server {
         info!(addr = %listener.local_addr()?, "listening");
         tokio::spawn(signal);
         let header_timeout = state.config().header_timeout();
-        let server = tokio::spawn(connections::serve(listener, app, header_timeout, state.shutdown_receiver()));
+        let server = tokio::spawn(connections::serve(
+            listener,
+            app,
+            header_timeout,
+            state.config().send_buffer(),
+            state.shutdown_receiver(),
+        ));
         let loaded = load(state.clone(), loaded).await;
         if loaded.is_err() {
             state.begin_shutdown();

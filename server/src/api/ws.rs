@@ -408,14 +408,12 @@ pub async fn upgrade(
     let initial = params.normalize(&ready.scene, state.store(), state.limits(), Source::Query)?;
     let walking = !matches!(params.camera.position.as_deref(), Some([_, _, _]));
     let config = state.config();
-    let guard = SessionGuard::enter(state.metrics(), config.max_sessions).ok_or_else(|| ApiError::Busy {
-        message: format!("this server takes at most {} WebSocket sessions", config.max_sessions),
-        retry_after: 5,
-    })?;
+    let slot = Slot::take(&state, join.is_some())?;
+    state.metrics().sessions_opened.inc();
     let ws = ws.max_message_size(config.ws_max_message).max_frame_size(config.ws_max_message);
     Ok(ws.on_upgrade(move |socket| async move {
         let Some(ready) = state.ready() else { return };
-        let mut session = Session::new(&state, ready, initial, walking, admin.is_ok());
+        let mut session = Session::new(&state, ready, initial, walking, admin.is_ok(), slot);
         if let Some(meeting) = join {
             session.follow(&meeting);
         }
@@ -423,30 +421,51 @@ pub async fn upgrade(
         let id = session.id;
         session.run(socket).await;
         tracing::info!(session = id, "WebSocket session closed");
-        drop(guard);
     }))
 }
 
-/// Counts a session in the `sessions` gauge for as long as it lives.
-struct SessionGuard {
-    metrics: Metrics,
+/// What a session holds of the server's capacity: a rendering slot (`--max-sessions`) while it
+/// renders its own view, a follower's place (`--max-followers`) while it shows a meeting's
+/// frames, which cost no render. Counted in the `sessions` or `followers` gauge while held.
+enum Slot {
+    Rendering(Metrics),
+    Following(Metrics),
 }
 
-impl SessionGuard {
-    fn enter(metrics: &Metrics, max_sessions: usize) -> Option<SessionGuard> {
-        let before = metrics.sessions.inc();
-        if usize::try_from(before).unwrap_or(usize::MAX) >= max_sessions {
-            metrics.sessions.dec();
-            return None;
+impl Slot {
+    /// Takes a slot of the kind asked for; `Busy` when all are held.
+    fn take(state: &AppState, following: bool) -> Result<Slot, ApiError> {
+        let (metrics, config) = (state.metrics(), state.config());
+        let (gauge, limit) = if following {
+            (&metrics.followers, config.max_followers)
+        } else {
+            (&metrics.sessions, config.max_sessions)
+        };
+        let before = gauge.inc();
+        if usize::try_from(before).unwrap_or(usize::MAX) >= limit {
+            gauge.dec();
+            let message = if following {
+                format!("this server lets at most {limit} WebSocket sessions follow meetings")
+            } else {
+                format!("this server takes at most {limit} WebSocket sessions that render their own view")
+            };
+            return Err(ApiError::Busy { message, retry_after: 5 });
         }
-        metrics.sessions_opened.inc();
-        Some(SessionGuard { metrics: metrics.clone() })
+        let metrics = metrics.clone();
+        Ok(if following { Slot::Following(metrics) } else { Slot::Rendering(metrics) })
+    }
+
+    fn is_following(&self) -> bool {
+        matches!(self, Slot::Following(_))
     }
 }
 
-impl Drop for SessionGuard {
+impl Drop for Slot {
     fn drop(&mut self) {
-        self.metrics.sessions.dec();
+        match self {
+            Slot::Rendering(m) => m.sessions.dec(),
+            Slot::Following(m) => m.followers.dec(),
+        };
     }
 }
 
@@ -514,10 +533,19 @@ struct Session<'a> {
     mailbox: Mailbox,
     /// The tour being played.
     tour: Option<tour::TourPlay>,
+    /// The capacity the session holds: rendering or following.
+    slot: Slot,
 }
 
 impl<'a> Session<'a> {
-    fn new(state: &'a AppState, ready: &'a Ready, initial: ViewRequest, walking: bool, admitted: bool) -> Session<'a> {
+    fn new(
+        state: &'a AppState,
+        ready: &'a Ready,
+        initial: ViewRequest,
+        walking: bool,
+        admitted: bool,
+        slot: Slot,
+    ) -> Session<'a> {
         let lane = ready.pool.session_lane();
         let camera = initial.camera;
         let ground = |c: &Camera| ready.scene.terrain.height_at(f64::from(c.position[0]), f64::from(c.position[1]));
@@ -528,6 +556,7 @@ impl<'a> Session<'a> {
             admitted,
             meeting: None,
             tour: None,
+            slot,
             state,
             ready,
             lane,
@@ -631,7 +660,13 @@ impl<'a> Session<'a> {
                     Ok(message) => message,
                     Err(failed) => return self.ended(failed),
                 },
-                Event::Present(presenter) => Some(self.start_presenting(presenter)),
+                Event::Present(presenter) => Some(match self.take_slot(false) {
+                    Ok(()) => self.start_presenting(presenter),
+                    Err(e) => {
+                        presenter.close("the presenter's session could not get a rendering slot");
+                        self.reject(e)
+                    }
+                }),
                 Event::ArtMaps => {
                     // The view is shown again with the new maps.
                     self.delivered = None;
@@ -676,9 +711,21 @@ impl<'a> Session<'a> {
         }
     }
 
+    /// Makes the session hold a rendering slot (`following` false) or a follower's place;
+    /// the other is given back. `Busy` (and nothing changes) when none is free.
+    fn take_slot(&mut self, following: bool) -> Result<(), ApiError> {
+        if self.slot.is_following() != following {
+            self.slot = Slot::take(self.state, following)?;
+        }
+        Ok(())
+    }
+
     /// Logs why a send ended the session (a client that does not read is worth a warning).
     fn ended(&self, failed: SendFailed) {
         match failed {
+            SendFailed::NoSlot => {
+                tracing::info!(session = self.id, "meeting ended with every rendering slot taken; follower closed");
+            }
             SendFailed::Deadline => {
                 tracing::warn!(session = self.id, "client took no message within --ws-send-timeout-s; closed");
             }
@@ -1036,6 +1083,9 @@ enum SendFailed {
     Deadline,
     /// The server is shutting down; the message was abandoned.
     ShuttingDown,
+    /// A follower's meeting ended while every rendering slot was taken: it was told so and
+    /// closed (it cannot go on on its own).
+    NoSlot,
 }
 
 /// A session's connection: every send has a deadline and gives way to shutdown, so a client

@@ -9,6 +9,7 @@ use crate::api::meetings::{self, Follower, Meeting, MeetingStatus, Presenter, Sh
 use crate::api::view::ViewRequest;
 use crate::render::view_style::ViewStyle;
 use axum::body::Bytes;
+use axum::extract::ws::close_code;
 use axum::extract::ws::{Message, Utf8Bytes};
 use serde::Serialize;
 use std::sync::Arc;
@@ -166,6 +167,7 @@ impl Session<'_> {
             )));
         }
         let meeting = self.state.meetings().find(code)?;
+        self.take_slot(true)?;
         Ok(self.follow(&meeting))
     }
 
@@ -183,6 +185,12 @@ impl Session<'_> {
             Some(Role::Following(f)) => f.meeting.clone(),
             _ => return Err(ApiError::Conflict("this session follows no meeting".into())),
         };
+        self.take_slot(false).map_err(|e| match e {
+            ApiError::Busy { message, retry_after } => {
+                ApiError::Busy { message: format!("{message}; stay with the meeting and try again later"), retry_after }
+            }
+            other => other,
+        })?;
         self.leave_following();
         self.meeting = Some(Role::Detached(meeting));
         Ok(self.meeting_message().unwrap_or_else(|| unreachable!("the session detached")))
@@ -198,6 +206,7 @@ impl Session<'_> {
             self.meeting = None;
             return Err(ApiError::NotFound(format!("meeting {} has ended", meeting.code)));
         }
+        self.take_slot(true)?;
         Ok(self.follow(&meeting))
     }
 
@@ -273,11 +282,22 @@ impl Session<'_> {
                 };
                 match ended {
                     Some(reason) => {
+                        let ended = ServerMessage::MeetingEnded { code, reason: reason.into() };
                         if self.is_following() {
+                            // Going on alone takes a rendering slot; without one the follower
+                            // is told so and closed.
+                            if let Err(busy) = self.take_slot(false) {
+                                socket.send_json(&ended).await?;
+                                socket.send_json(&self.reject(busy)).await?;
+                                socket
+                                    .close(close_code::AGAIN, "the meeting ended; no rendering session is free")
+                                    .await;
+                                return Err(SendFailed::NoSlot);
+                            }
                             self.leave_following();
                         }
                         self.meeting = None;
-                        Ok(Some(ServerMessage::MeetingEnded { code, reason: reason.into() }))
+                        Ok(Some(ended))
                     }
                     None => Ok(self.meeting_message()),
                 }
