@@ -1,6 +1,6 @@
 // The creases pass (`render::creases`, declared as `render::passes::CREASES`): over the
 // composed sketch, the terrain's crease lines — valley bottoms (the DEM's drainage network,
-// `prep::creases`) and ridge crests (the inverted DEM's) — as pen lines of constant width on
+// `prep::creases`), ridge crests (the inverted DEM's) and breaks of slope — as pen lines of constant width on
 // screen, in the terrain style's ink, fixed to the ground. One quad per segment (six vertices,
 // instanced), its ends extended by half a width so consecutive segments join. The blocks
 // `marks` (the frame's camera, `render::marks::Marks`), the G-buffer's linear depth
@@ -46,7 +46,11 @@ fn vs_creases(@builtin(vertex_index) vertex: u32, @builtin(instance_index) insta
     out.ink = 0.0;
     let ca = marks.view_proj * vec4<f32>(line.a, 1.0);
     let cb = marks.view_proj * vec4<f32>(line.b, 1.0);
-    if line.hectares < post.terrain_crease_area || ca.w <= 1e-3 || cb.w <= 1e-3 {
+    // Valleys and ridges by the area they drain (hectares), breaks of slope by their change
+    // of slope (degrees); each against its style threshold.
+    let is_break = line.kind == 2u;
+    let threshold = select(post.terrain_crease_area, post.terrain_break_angle, is_break);
+    if line.measure < threshold || ca.w <= 1e-3 || cb.w <= 1e-3 {
         return out;
     }
     let pa = crease_pixel(ca);
@@ -63,8 +67,10 @@ fn vs_creases(@builtin(vertex_index) vertex: u32, @builtin(instance_index) insta
     out.clip = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
     out.across = corner.y * w;
     out.depth = mix(linear_depth(line.a), linear_depth(line.b), corner.x);
-    // Lines of small catchments fainter: full ink from four times the threshold up.
-    out.ink = post.terrain_creases * saturate(0.5 + 0.25 * log2(line.hectares / post.terrain_crease_area));
+    // Lines of small catchments fainter: full ink from four times the threshold up; breaks
+    // from twice their threshold.
+    let strength = select(0.5 + 0.25 * log2(line.measure / threshold), line.measure / threshold - 0.5, is_break);
+    out.ink = post.terrain_creases * saturate(strength);
     return out;
 }
 

@@ -308,20 +308,51 @@ fn the_lidar_villages_relief_reads_from_above_once_exaggerated() {
     );
 }
 
+/// Of `points` (scene metres) seen by `camera` in a `w` × `h` frame of `style`, how many are
+/// in view and how many are inked (the darkest pixel within one pixel below 0.6).
+fn inked_points(
+    renderer: &Renderer,
+    camera: &Camera,
+    style: Style,
+    points: &[glam::Vec3],
+    w: u32,
+    h: u32,
+) -> (usize, usize) {
+    let image = renderer.render(FrameRequest::new(camera, style, w, h)).expect("render").image;
+    let (mut seen, mut inked) = (0, 0);
+    for p in points {
+        let (x, y) = camera.point_pixel(*p, w, h);
+        if x < 2.0 || y < 2.0 || x > w as f32 - 3.0 || y > h as f32 - 3.0 {
+            continue;
+        }
+        seen += 1;
+        let darkest = (-1..=1)
+            .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+            .map(|(dx, dy)| luminance(image.get_pixel((x as i32 + dx) as u32, (y as i32 + dy) as u32)))
+            .fold(1.0f32, f32::min);
+        inked += usize::from(darkest < 0.6);
+    }
+    (seen, inked)
+}
+
+/// Only the crease lines: no hatching, no silhouettes.
+fn lines_only(creases: f32, crease_area: f32, break_angle: f32) -> Style {
+    Style {
+        hatch_strength: 0.0,
+        silhouette_strength: 0.0,
+        terrain_creases: creases,
+        terrain_crease_area: crease_area,
+        terrain_break_angle: break_angle,
+        ..Style::default()
+    }
+}
+
 #[test]
 fn a_valley_bottom_gets_a_crease_line_that_stays_on_it_when_the_camera_moves() {
     // A V-shaped valley along x = 0, falling 0.5 m per 10 m cell to the south, sides 1:5.
     let scene =
         terrain_scene(61, 10.0, Sun { azimuth: 135.0, elevation: 45.0 }, |x, y| 100.0 + 0.2 * x.abs() + 0.05 * y);
     let renderer = Renderer::new(gpu(), &scene).expect("renderer");
-    // Only the lines: no hatching, no silhouettes.
-    let lines = |creases: f32| Style {
-        hatch_strength: 0.0,
-        silhouette_strength: 0.0,
-        terrain_creases: creases,
-        terrain_crease_area: 1.0,
-        ..Style::default()
-    };
     let (w, h) = (256u32, 192u32);
     let axis: Vec<glam::Vec3> = (-20..=10)
         .map(|k| {
@@ -334,28 +365,40 @@ fn a_valley_bottom_gets_a_crease_line_that_stays_on_it_when_the_camera_moves() {
         Camera::perspective([0.0, -320.0, 150.0], 0.0, -20.0, 60.0),
         Camera::perspective([30.0, -260.0, 170.0], -6.0, -24.0, 60.0),
     ] {
-        let on_axis = |style: Style| {
-            let image = renderer.render(FrameRequest::new(&camera, style, w, h)).expect("render").image;
-            let (mut seen, mut inked) = (0, 0);
-            for p in &axis {
-                let (x, y) = camera.point_pixel(*p, w, h);
-                if x < 2.0 || y < 2.0 || x > w as f32 - 3.0 || y > h as f32 - 3.0 {
-                    continue;
-                }
-                seen += 1;
-                // The darkest pixel within one pixel of the projected point.
-                let darkest = (-1..=1)
-                    .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
-                    .map(|(dx, dy)| luminance(image.get_pixel((x as i32 + dx) as u32, (y as i32 + dy) as u32)))
-                    .fold(1.0f32, f32::min);
-                inked += usize::from(darkest < 0.6);
-            }
-            (seen, inked)
-        };
-        let (seen, with) = on_axis(lines(1.0));
-        let (_, without) = on_axis(lines(0.0));
+        let (seen, with) = inked_points(&renderer, &camera, lines_only(1.0, 1.0, 90.0), &axis, w, h);
+        let (_, without) = inked_points(&renderer, &camera, lines_only(0.0, 1.0, 90.0), &axis, w, h);
         assert!(seen >= 15, "{seen} points of the axis in view");
         assert!(with * 10 >= seen * 9, "the line covers {with} of {seen} axis points");
         assert!(without * 2 <= seen, "without crease lines {without} of {seen} axis points are inked");
+    }
+}
+
+#[test]
+fn a_terraces_top_and_foot_get_break_of_slope_lines_at_the_styles_angle() {
+    // Flat west of x = −100 m, a 30° slope down to x = +100 m, flat east of it.
+    let drop = 30f64.to_radians().tan();
+    let scene = terrain_scene(61, 10.0, Sun { azimuth: 135.0, elevation: 45.0 }, move |x, _| {
+        100.0 - drop * (x.clamp(-100.0, 100.0) + 100.0)
+    });
+    let renderer = Renderer::new(gpu(), &scene).expect("renderer");
+    let edge = |x: f32| -> Vec<glam::Vec3> {
+        (-20..=20)
+            .map(|k| {
+                let y = k as f32 * 10.0;
+                let z = scene.terrain.height_at(f64::from(x), f64::from(y)).expect("on the DEM") as f32;
+                glam::Vec3::new(x, y, z)
+            })
+            .collect()
+    };
+    let (w, h) = (256u32, 192u32);
+    // From the south-east above the slope; valleys and ridges left out (a huge area).
+    let camera = Camera::perspective([150.0, -420.0, 260.0], -15.0, -32.0, 60.0);
+    for x in [-100.0, 100.0] {
+        let points = edge(x);
+        let (seen, with) = inked_points(&renderer, &camera, lines_only(1.0, 100_000.0, 15.0), &points, w, h);
+        let (_, steeper) = inked_points(&renderer, &camera, lines_only(1.0, 100_000.0, 40.0), &points, w, h);
+        assert!(seen >= 20, "{seen} points of the edge at x = {x} in view");
+        assert!(with * 10 >= seen * 8, "the line at x = {x} covers {with} of {seen} points");
+        assert!(steeper * 4 <= seen, "a 40° threshold still inks {steeper} of {seen} points at x = {x}");
     }
 }

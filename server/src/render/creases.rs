@@ -4,18 +4,19 @@
 //! ground, hidden where nearer geometry covers them.
 
 use super::uniforms::{Vec3f, gpu_block, storage_buffer};
-use crate::prep::creases::CreaseSegment;
+use crate::prep::creases::{CreaseKind, CreaseSegment};
 
 gpu_block! {
     /// One segment of a crease line as the creases pass reads it.
     pub struct CreaseLine {
         /// One end, scene metres.
         pub a: Vec3f,
-        /// The area it drains, hectares.
-        pub hectares: f32,
+        /// How strong it is: the area drained in hectares (valleys, ridges), the change of
+        /// slope in degrees (breaks of slope).
+        pub measure: f32,
         /// The other end.
         pub b: Vec3f,
-        /// [`crate::prep::creases::CreaseKind`]: 0 valley, 1 ridge.
+        /// [`crate::prep::creases::CreaseKind`]: 0 valley, 1 ridge, 2 break of slope.
         pub kind: u32,
     }
 }
@@ -25,7 +26,13 @@ gpu_block! {
 pub fn crease_buffer(device: &wgpu::Device, segments: &[CreaseSegment]) -> (wgpu::Buffer, u32) {
     let mut lines: Vec<CreaseLine> = segments
         .iter()
-        .map(|s| CreaseLine { a: s.a.into(), hectares: (s.area / 10_000.0) as f32, b: s.b.into(), kind: s.kind as u32 })
+        .map(|s| {
+            let measure = match s.kind {
+                CreaseKind::Valley | CreaseKind::Ridge => s.measure / 10_000.0,
+                CreaseKind::Break => s.measure,
+            };
+            CreaseLine { a: s.a.into(), measure: measure as f32, b: s.b.into(), kind: s.kind as u32 }
+        })
         .collect();
     let count = lines.len() as u32;
     if lines.is_empty() {

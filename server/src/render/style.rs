@@ -451,6 +451,10 @@ style_fields! {
     /// The smallest area in hectares a valley (or, of the inverted terrain, a ridge) drains for
     /// its crease line to be drawn: larger values keep only the main valleys and crests.
     terrain_crease_area: f32 = 20.0, 0.2..=100000;
+    /// The smallest change of slope in degrees, along the fall line, for a break-of-slope line
+    /// to be drawn (the top of a bank or a scarp, the foot of a slope, a terrace's edge; drawn
+    /// with the crease lines): lower values draw gentler breaks, 90 none.
+    terrain_break_angle: f32 = 15.0, 4..=90;
     /// How dark the borders between the ground's land-cover classes are drawn (with the
     /// contours, scaled by `contour_strength`), 0 (none) to 1: the outline of a wood, a field
     /// or a lake on the ground (`[terrain] landcover`).

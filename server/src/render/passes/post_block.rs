@@ -79,6 +79,8 @@ gpu_block! {
         pub terrain_creases: f32,
         /// Hectares a crease line drains at least to be drawn.
         pub terrain_crease_area: f32,
+        /// Degrees of slope change a break-of-slope line has at least to be drawn.
+        pub terrain_break_angle: f32,
         /// Ink of the borders between land-cover classes (0..1).
         pub land_cover_outline: f32,
         /// Ink colour (sRGB).
@@ -150,6 +152,7 @@ impl PostStyle {
             terrain_exaggeration: style.terrain_exaggeration,
             terrain_creases: style.terrain_creases * style.contour_strength,
             terrain_crease_area: style.terrain_crease_area,
+            terrain_break_angle: style.terrain_break_angle,
             land_cover_outline: style.land_cover_outline,
             ink: Vec3f(style.ink),
             paper: Vec3f(style.paper),

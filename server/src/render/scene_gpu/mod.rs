@@ -155,7 +155,14 @@ impl SceneGpu {
         let terrain_lod = TerrainLod::build(&scene.terrain, TERRAIN_CHUNK_CELLS, TERRAIN_LEVELS);
         let terrain = up.terrain(&terrain_lod.mesh, &scene.terrain.drape)?;
         let segments = crate::prep::creases::crease_lines(&scene.terrain);
-        info!(segments = segments.len(), "terrain crease lines");
+        let count = |kind| segments.iter().filter(|s| s.kind == kind).count();
+        use crate::prep::creases::CreaseKind;
+        info!(
+            valleys = count(CreaseKind::Valley),
+            ridges = count(CreaseKind::Ridge),
+            breaks = count(CreaseKind::Break),
+            "terrain crease lines"
+        );
         let creases = crease_buffer(device, &segments);
         let baker = Baker::new(device, &pass.material_layout);
         let mut species = Vec::with_capacity(scene.species.len());
