@@ -117,23 +117,26 @@ fn boulder_sampling_by_hand() {
     assert_eq!(r.sample_bilinear(lx, ly), Some(2028.0));
 }
 
+/// The `boulder_crop_*` fixtures: one window of the Boulder DEM in every sample layout.
+const CROP_FIXTURES: [&str; 10] = [
+    "boulder_crop_tiled_i16.tif",
+    "boulder_crop_u16_lzw.tif",
+    "boulder_crop_f32_fpredict.tif",
+    "boulder_crop_f64.tif",
+    "boulder_crop_i32_bigendian.tif",
+    "boulder_crop_f32_bigendian_tiled.tif",
+    "boulder_crop_u32_packbits.tif",
+    "boulder_crop_pixelispoint.tif",
+    "boulder_crop_3band_pixel.tif",
+    "boulder_crop_2band_planar.tif",
+];
+
 #[test]
 fn crop_fixtures_match_the_full_dem() {
     let full = load("boulder_SRTMGL3_derived.tif");
     let window = full.crop(CROP.0, CROP.1, CROP.2, CROP.3).unwrap();
     assert_eq!(window.get(0, 0), Some(2490.0));
-    for name in [
-        "boulder_crop_tiled_i16.tif",
-        "boulder_crop_u16_lzw.tif",
-        "boulder_crop_f32_fpredict.tif",
-        "boulder_crop_f64.tif",
-        "boulder_crop_i32_bigendian.tif",
-        "boulder_crop_f32_bigendian_tiled.tif",
-        "boulder_crop_u32_packbits.tif",
-        "boulder_crop_pixelispoint.tif",
-        "boulder_crop_3band_pixel.tif",
-        "boulder_crop_2band_planar.tif",
-    ] {
+    for name in CROP_FIXTURES {
         let r = load(name);
         assert_same_cells(&r, &window);
         assert_transform_close(&r.transform, &window.transform, 1e-9);
@@ -148,20 +151,7 @@ fn windows_of_every_layout_read_only_their_chunks_and_match_the_whole_file() {
     // three bands) read through the windowed reader: whole, and a window across chunk
     // borders, equal the whole file read at once and cropped.
     let window = Extent { min_x: -105.4595, min_y: 40.1390, max_x: -105.4555, max_y: 40.1420 };
-    for name in [
-        "boulder_SRTMGL3_derived.tif",
-        "boulder_crop_tiled_i16.tif",
-        "boulder_crop_u16_lzw.tif",
-        "boulder_crop_f32_fpredict.tif",
-        "boulder_crop_f64.tif",
-        "boulder_crop_i32_bigendian.tif",
-        "boulder_crop_f32_bigendian_tiled.tif",
-        "boulder_crop_u32_packbits.tif",
-        "boulder_crop_pixelispoint.tif",
-        "boulder_crop_3band_pixel.tif",
-        "boulder_crop_2band_planar.tif",
-        "zion_nlcd2011_simplified.tif",
-    ] {
+    for name in CROP_FIXTURES.into_iter().chain(["boulder_SRTMGL3_derived.tif", "zion_nlcd2011_simplified.tif"]) {
         let whole = load(name);
         let read = load_dem(&fixture(name), None, u64::MAX).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_same_cells(&read, &whole);

@@ -148,6 +148,19 @@ fn feature(geometry: &str, properties: &str) -> String {
     format!(r#"{{"type": "Feature", "geometry": {geometry}, "properties": {{{properties}}}}}"#)
 }
 
+/// GeoJSON point features at (E, N) with a species under `species_key` and a `height`.
+fn point_features(points: &[(f64, f64, &str, f64)], species_key: &str) -> Vec<String> {
+    points
+        .iter()
+        .map(|(e, n, s, h)| {
+            feature(
+                &format!(r#"{{"type": "Point", "coordinates": [{e}, {n}]}}"#),
+                &format!(r#""{species_key}": "{s}", "height": {h}"#),
+            )
+        })
+        .collect()
+}
+
 fn collection(features: &[String], crs: Option<u32>) -> String {
     let crs = crs.map_or(String::new(), |c| {
         format!(r#""crs": {{"type": "name", "properties": {{"name": "urn:ogc:def:crs:EPSG::{c}"}}}}, "#)
@@ -268,16 +281,7 @@ fn points_and_csv_inventories_place_plants_at_the_features() {
     let dir = tempfile::tempdir().unwrap();
     // GeoJSON points in BNG with species and height; a CSV with x, y in BNG and one with lon, lat.
     let pts = [(321_100.0, 129_100.0, "OAK", 18.0), (321_300.0, 129_250.0, "pine", 12.0)];
-    let features: Vec<String> = pts
-        .iter()
-        .map(|(e, n, s, h)| {
-            feature(
-                &format!(r#"{{"type": "Point", "coordinates": [{e}, {n}]}}"#),
-                &format!(r#""Tree_speci": "{s}", "height": {h}"#),
-            )
-        })
-        .collect();
-    let geojson = write(dir.path(), "trees.geojson", &collection(&features, Some(27700)));
+    let geojson = write(dir.path(), "trees.geojson", &collection(&point_features(&pts, "Tree_speci"), Some(27700)));
     let csv = write(
         dir.path(),
         "inventory.csv",
@@ -397,16 +401,7 @@ fn shapefile_plans_place_the_same_plants_as_the_same_features_in_geojson() {
     let line = format!(r#"{{"type": "LineString", "coordinates": [[{}, {}], [{}, {}]]}}"#, a.0, a.1, b.0, b.1);
     let hedges =
         write(dir.path(), "hedges.geojson", &collection(&[feature(&line, r#""species": "hawthorn""#)], Some(27700)));
-    let features: Vec<String> = trees
-        .iter()
-        .map(|(e, n, s, h)| {
-            feature(
-                &format!(r#"{{"type": "Point", "coordinates": [{e}, {n}]}}"#),
-                &format!(r#""species": "{s}", "height": {h}"#),
-            )
-        })
-        .collect();
-    let points_json = write(dir.path(), "trees.geojson", &collection(&features, Some(27700)));
+    let points_json = write(dir.path(), "trees.geojson", &collection(&point_features(&trees, "species"), Some(27700)));
     let from_json = load(&plan_scene(dir.path(), &plans(&wood, &hedges, &points_json), 7));
     let (shp, json) = (&from_shp.layers[0].plants, &from_json.layers[0].plants);
     assert!(shp.len() > 100, "{} plants", shp.len());

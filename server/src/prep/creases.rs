@@ -375,14 +375,9 @@ mod tests {
     use crate::gis::{Crs, GeoTransform, Raster};
 
     /// A V-shaped valley running north-south along x = 0, sloping down to the south; 10 m cells.
-    fn valley() -> Terrain {
-        let n = 41;
-        let data = (0..n * n)
-            .map(|i| {
-                let (col, row) = ((i % n) as f64 - 20.0, (i / n) as f64);
-                100.0 + 2.0 * col.abs() - 0.5 * row
-            })
-            .collect();
+    /// A terrain of `n` × `n` cells of 10 m in UTM 13N with `height(col, row)`.
+    fn terrain_of(n: usize, height: impl Fn(f64, f64) -> f64) -> Terrain {
+        let data = (0..n * n).map(|i| height((i % n) as f64, (i / n) as f64)).collect();
         let dem = Raster {
             width: n,
             height: n,
@@ -393,6 +388,10 @@ mod tests {
             palette: None,
         };
         Terrain::new(dem, [1.0; 3]).expect("terrain")
+    }
+
+    fn valley() -> Terrain {
+        terrain_of(41, |col, row| 100.0 + 2.0 * (col - 20.0).abs() - 0.5 * row)
     }
 
     #[test]
@@ -418,24 +417,8 @@ mod tests {
     /// A terrace: flat at 100 m west of x = −100 m, a 30° slope down to x = +100 m, flat
     /// below (10 m cells, north–south lines).
     fn terrace() -> Terrain {
-        let n = 61;
         let drop = 30f64.to_radians().tan();
-        let data = (0..n * n)
-            .map(|i| {
-                let x = ((i % n) as f64 - 30.0) * 10.0;
-                100.0 - drop * (x.clamp(-100.0, 100.0) + 100.0)
-            })
-            .collect();
-        let dem = Raster {
-            width: n,
-            height: n,
-            data,
-            nodata: None,
-            transform: GeoTransform { origin_x: 500_000.0, origin_y: 4_400_000.0, cell_width: 10.0, cell_height: 10.0 },
-            crs: Crs::Projected { epsg: Some(32613), unit_to_metre: 1.0 },
-            palette: None,
-        };
-        Terrain::new(dem, [1.0; 3]).expect("terrain")
+        terrain_of(61, move |col, _| 100.0 - drop * (((col - 30.0) * 10.0).clamp(-100.0, 100.0) + 100.0))
     }
 
     #[test]
