@@ -36,13 +36,6 @@ fn blurred_tone(p: vec2<i32>) -> f32 {
     return gaussian_tone(tone_tex, 0u, p, vec2<i32>(0, 1), i32(post.tone_blur));
 }
 
-// The TAM mip level at pixel p: it follows the texture's tiles per pixel so strokes keep their
-// width on screen.
-fn tam_lod(p: vec2<i32>) -> f32 {
-    let tiles_per_px = textureLoad(normal_tex, p, 0).w;
-    return log2(max(tiles_per_px * post.tam_size, 1e-4));
-}
-
 // Tonal art map lookup (Praun et al., thesis 6.1) at hatch coordinates `coords` in the TAM whose
 // first tone level is array layer `base`: the darkness is placed between the two tone levels
 // whose mean darkness brackets it (level i of n aims at 0.1 + 0.8 i / (n - 1),
@@ -83,19 +76,37 @@ struct StrokeLayer {
     lod: f32,
 };
 
-fn stroke_layer(p: vec2<i32>, layer: i32, layers: i32) -> StrokeLayer {
-    let hatch = textureLoad(hatch_tex, p, 0);
-    let lod = tam_lod(p);
-    if layers == 1 {
-        return StrokeLayer(hatch.xy, 1.0, lod);
+// What the pixel's stroke layers are made of, read from the G-buffer once per pixel (not
+// once per layer): its hatch coordinates, mip level, the second orientation's share and the
+// coarser scale's, and the layer count.
+struct StrokeFrame {
+    hatch: vec4<f32>,
+    lod: f32,
+    second: f32,
+    coarse: f32,
+    layers: i32,
+};
+
+fn stroke_frame(p: vec2<i32>) -> StrokeFrame {
+    let layers = stroke_layers(p);
+    // The TAM mip level follows the texture's tiles per pixel, so strokes keep their width
+    // on screen.
+    let normal_w = textureLoad(normal_tex, p, 0).w;
+    let lod = log2(max(normal_w * post.tam_size, 1e-4));
+    let second = textureLoad(depth_tex, p, 0).g;
+    let coarse = saturate(log2(normal_w * post.terrain_tile));
+    return StrokeFrame(textureLoad(hatch_tex, p, 0), lod, second, coarse, layers);
+}
+
+fn stroke_layer(frame: StrokeFrame, layer: i32) -> StrokeLayer {
+    if frame.layers == 1 {
+        return StrokeLayer(frame.hatch.xy, 1.0, frame.lod);
     }
     let second = (layer & 1) == 1;
     let coarse = layer >= 2;
-    let w = textureLoad(depth_tex, p, 0).g;
-    let f = saturate(log2(textureLoad(normal_tex, p, 0).w * post.terrain_tile));
-    let weight = select(1.0 - w, w, second) * select(1.0 - f, f, coarse);
-    let coords = select(hatch.xy, hatch.zw, second) * select(1.0, 0.5, coarse);
-    return StrokeLayer(coords, weight, lod - select(0.0, 1.0, coarse));
+    let weight = select(1.0 - frame.second, frame.second, second) * select(1.0 - frame.coarse, frame.coarse, coarse);
+    let coords = select(frame.hatch.xy, frame.hatch.zw, second) * select(1.0, 0.5, coarse);
+    return StrokeLayer(coords, weight, frame.lod - select(0.0, 1.0, coarse));
 }
 
 // Ink of the pixel's strokes at `darkness` from the TAM at `base`, its hatch coordinates turned
@@ -104,11 +115,11 @@ fn stroke_layer(p: vec2<i32>, layer: i32, layers: i32) -> StrokeLayer {
 // of the tone (its darkness), so blended layers keep the contrast of one instead of fading to
 // grey half-strokes; one layer is returned as it is.
 fn stroke_ink(p: vec2<i32>, base: i32, darkness: f32, rotation: vec2<f32>) -> f32 {
-    let layers = stroke_layers(p);
+    let frame = stroke_frame(p);
     var ink = 0.0;
     var squares = 0.0;
-    for (var i = 0; i < layers; i++) {
-        let l = stroke_layer(p, i, layers);
+    for (var i = 0; i < frame.layers; i++) {
+        let l = stroke_layer(frame, i);
         let r = rotation;
         let c = vec2<f32>(r.x * l.coords.x - r.y * l.coords.y, r.y * l.coords.x + r.x * l.coords.y);
         ink += l.weight * tam_ink(c, base, darkness, l.lod);
