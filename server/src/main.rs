@@ -15,6 +15,7 @@ use landsketch::render::{FrameRequest, Gpu, RenderOptions, Renderer, Style};
 use landsketch::scene::Scene;
 use landsketch::scene::camera::{Camera, Projection};
 use landsketch::scene::camera_params::{CameraMode, CameraParams, Source};
+use landsketch::scene::config::SceneConfig;
 use landsketch::store::Store;
 use landsketch::store::request::{DataRequest, LayerCache};
 use serde::de::DeserializeOwned;
@@ -239,6 +240,10 @@ struct RenderArgs {
     /// scene metres across; --yaw turns the heading that points up (0 north).
     #[arg(long, value_name = "CX,CY,WIDTH", allow_hyphen_values = true, conflicts_with_all = ["pos", "pitch", "fov"])]
     plan: Option<String>,
+    /// A named viewpoint of the scene file (`[[viewpoints]]`): its camera, and its preset and
+    /// style under --preset and --style.
+    #[arg(long, value_name = "NAME", conflicts_with_all = ["pos", "plan", "yaw", "pitch", "fov", "roll"])]
+    viewpoint: Option<String>,
     #[command(flatten)]
     data: DataArgs,
     #[command(flatten)]
@@ -484,6 +489,29 @@ fn camera(args: &RenderArgs, scene: &Scene) -> Result<Camera> {
     Ok(camera)
 }
 
+/// The camera of the scene file's viewpoint `name`; its preset, style and layer styles go
+/// under those of the flags in `styles`.
+fn viewpoint_camera(path: &Path, name: &str, scene: &Scene, styles: &mut ViewStyle) -> Result<Camera> {
+    let config = SceneConfig::load(path)?;
+    let Some(viewpoint) = config.viewpoints.iter().find(|v| v.name == name) else {
+        let names: Vec<String> = config.viewpoints.iter().map(|v| format!("{:?}", v.name)).collect();
+        bail!(
+            "--viewpoint {name:?}: {} has no such viewpoint (it has {})",
+            path.display(),
+            if names.is_empty() { "none".to_owned() } else { names.join(", ") }
+        );
+    };
+    styles.preset = styles.preset.take().or_else(|| viewpoint.preset.clone());
+    let mut style = viewpoint.style.clone().unwrap_or_default();
+    style.merge(&styles.style);
+    styles.style = style;
+    for (layer, own) in viewpoint.layer_styles.iter().flatten() {
+        styles.layer_styles.entry(layer.clone()).or_insert_with(|| own.clone());
+    }
+    let resolved = viewpoint.camera.resolve(&scene.default_camera, scene, Source::Body);
+    Ok(resolved.with_context(|| format!("viewpoint {name:?} of {}", path.display()))?.camera)
+}
+
 fn coherence(
     scene: &Path,
     width: u32,
@@ -540,10 +568,13 @@ fn coherence(
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
-    let styles = view_style(args.preset.as_deref(), args.style.as_deref(), &args.layer_style)?;
+    let mut styles = view_style(args.preset.as_deref(), args.style.as_deref(), &args.layer_style)?;
     let scene = load_scene(&args.scene)?;
+    let camera = match &args.viewpoint {
+        Some(name) => viewpoint_camera(&args.scene, name, &scene, &mut styles)?,
+        None => camera(args, &scene)?,
+    };
     let style = frame_style(&styles, &scene)?;
-    let camera = camera(args, &scene)?;
     let gpu = Arc::new(Gpu::new()?);
     let renderer = Renderer::with_options(gpu, &scene, &args.cache.render_options()?)?;
     let started = std::time::Instant::now();

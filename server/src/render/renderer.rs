@@ -45,6 +45,8 @@ pub struct Renderer {
     sun: glam::Vec3,
     /// Names of the scene's vegetation layers, in layer-code order (per-layer styles).
     layer_names: Vec<String>,
+    /// The scene's plan layer (`[about] plan_layer`): the layer the style's `focus` highlights.
+    plan_layer: Option<String>,
     /// The digits of the pins' heads, and their texture.
     glyphs: GlyphAtlas,
     glyph_texture: wgpu::TextureView,
@@ -220,6 +222,7 @@ impl Renderer {
             glyphs,
             sun: scene.sun.direction(),
             layer_names: scene.layers.iter().map(|l| l.name.clone()).collect(),
+            plan_layer: scene.about.plan_layer.clone(),
             passes: POST_PASSES.iter().map(|decl| PostPass::new(&gpu.device, decl)).collect(),
             copy: PostPass::new(&gpu.device, &COPY),
             projection: ProjectionPass::new(&gpu, scene),
@@ -288,7 +291,7 @@ impl Renderer {
                 });
             }
         }
-        styles.slots(&self.layer_names)
+        styles.slots(&self.layer_names, self.plan_layer.as_deref())
     }
 
     /// The resolved style of every slot of `request` with its comparison applied, and where

@@ -512,6 +512,10 @@ style_fields! {
     color_saturation: f32 = 1.0, 0..=2;
     /// Colour abstraction (thesis 6.2): 0 the texture colour, 1 the material's average colour.
     color_abstraction: f32 = 0.0, 0..=1;
+    /// Highlight the plan: the scene's plan layer (`[about] plan_layer`) keeps its detail and
+    /// gets colour, while the ground and the other layers are drawn lighter and greyer (thesis
+    /// 7.3, "increased abstraction of the background"); 0 off, 1 full.
+    focus: f32 = 0.0, 0..=1;
     /// Blend of Lambert shading towards Gooch cool-to-warm shading, 0 to 1.
     gooch: f32 = 0.0, 0..=1;
     /// Blend of smooth shading towards toon shading with a 1D ramp of `toon_levels` bands
@@ -571,6 +575,31 @@ impl Style {
             leaf_size: to(self.leaf_size, 1.0),
             leaf_shape: to(self.leaf_shape, 0.0),
             leaf_outline: to(self.leaf_outline, 0.0),
+            ..self.clone()
+        }
+    }
+
+    /// This (resolved) style with its `focus` f applied: the plan layer (`plan`) gets colour
+    /// under its ink (at least 0.65 f) and saturation (at least 1 + 0.3 f), everything else
+    /// keeps `1 − 0.5 f` of its hatching, crease and land-cover lines, `1 − 0.4 f` of its
+    /// contours and silhouettes and `1 − 0.7 f` of its saturation, so the plan stands out by
+    /// detail, contrast and colour in every style.
+    pub fn focused(&self, plan: bool) -> Style {
+        let f = self.focus;
+        if plan {
+            return Style {
+                color: self.color.max(0.65 * f),
+                color_saturation: self.color_saturation.max(1.0 + 0.3 * f),
+                ..self.clone()
+            };
+        }
+        Style {
+            hatch_strength: self.hatch_strength * (1.0 - 0.5 * f),
+            terrain_creases: self.terrain_creases * (1.0 - 0.5 * f),
+            land_cover_outline: self.land_cover_outline * (1.0 - 0.5 * f),
+            contour_strength: self.contour_strength * (1.0 - 0.4 * f),
+            silhouette_strength: self.silhouette_strength * (1.0 - 0.4 * f),
+            color_saturation: self.color_saturation * (1.0 - 0.7 * f),
             ..self.clone()
         }
     }
@@ -644,9 +673,9 @@ impl FrameStyle {
     }
 
     /// The resolved style (photorealism applied) of every slot, given the scene's vegetation
-    /// layer names. A layer name the scene does not have, or a layer beyond the slots, is an
-    /// error.
-    pub fn slots(&self, vegetation_layers: &[String]) -> Result<Vec<Style>, RenderError> {
+    /// layer names and its plan layer (the one `focus` highlights; see [`Style::focused`]). A
+    /// layer name the scene does not have, or a layer beyond the slots, is an error.
+    pub fn slots(&self, vegetation_layers: &[String], plan_layer: Option<&str>) -> Result<Vec<Style>, RenderError> {
         let mut slots = vec![self.base.resolved(); STYLE_SLOTS];
         for (name, style) in &self.layers {
             let code = layer_code(name, vegetation_layers)?;
@@ -654,6 +683,13 @@ impl FrameStyle {
                 return Err(RenderError::LayerSlots { name: name.clone(), max: LayerCode::VEGETATION_SLOTS });
             };
             slots[slot] = style.resolved();
+        }
+        let plan_slot =
+            plan_layer.and_then(|name| layer_code(name, vegetation_layers).ok()).and_then(|code| code.own_slot());
+        if let Some(plan_slot) = plan_slot {
+            for (slot, style) in slots.iter_mut().enumerate() {
+                *style = style.focused(slot == plan_slot);
+            }
         }
         Ok(slots)
     }
@@ -819,7 +855,7 @@ mod tests {
         let mut frame = FrameStyle::from(Style::default());
         frame.layers.insert("existing".into(), photo.clone());
         frame.layers.insert(TERRAIN_LAYER.into(), Style { hatch_map: 1, silhouette_map: 3, ..Style::default() });
-        let slots = frame.slots(&layers).unwrap();
+        let slots = frame.slots(&layers, None).unwrap();
         assert_eq!(slots.len(), STYLE_SLOTS);
         assert_eq!((slots[0].hatch_map, slots[1].hatch_map), (0, 1));
         assert_eq!(slots[2], photo.resolved());
@@ -837,7 +873,7 @@ mod tests {
         let err = serde_json::from_str::<LayerStyle>(r#"{"preset": 3}"#).unwrap_err();
         assert!(err.to_string().contains("preset"));
         frame.layers.insert("meadow".into(), Style::default());
-        let err = frame.slots(&layers).unwrap_err().to_string();
+        let err = frame.slots(&layers, None).unwrap_err().to_string();
         assert!(err.contains("meadow") && err.contains("terrain, existing, planned"), "{err}");
     }
 
