@@ -26,4 +26,4 @@ USER landsketch
 VOLUME /var/lib/landsketch
 EXPOSE 8080
 ENTRYPOINT ["landsketch", "serve"]
-CMD ["--addr", "0.0.0.0:8080", "--data-dir", "/var/lib/landsketch", "--scene", "data/boulder/scene.toml"]
+CMD ["--addr", "0.0.0.0:8080", "--data-dir", "/var/lib/landsketch", "--scene", "data/rbsf/scene.toml"]

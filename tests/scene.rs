@@ -223,3 +223,51 @@ fn a_text_file_is_not_a_dem() {
     assert!(err.contains("fake.tif") && err.to_lowercase().contains("tiff"), "{err}");
     assert!(matches!(Scene::load(Path::new("data/boulder/missing.toml")), Err(SceneError::Io { .. })));
 }
+
+#[test]
+fn render_takes_a_named_viewpoint_and_writes_jpeg_by_extension() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run = |viewpoint: &str, out: &Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+            .args(["render", "--scene", SAMPLE, "--viewpoint", viewpoint, "--width", "64", "--height", "48"])
+            .arg("--out")
+            .arg(out)
+            .output()
+            .expect("run landsketch render")
+    };
+    // The sample's "Plan" viewpoint is a plan view: the same picture as `--plan` with its
+    // centre, width and heading.
+    let jpeg = dir.path().join("plan.jpg");
+    let output = run("Plan", &jpeg);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let bytes = std::fs::read(&jpeg).expect("the JPEG");
+    assert_eq!(&bytes[..2], &[0xFF, 0xD8], "a JPEG by the file's extension");
+    let image = image::load_from_memory(&bytes).expect("decodes");
+    assert_eq!((image.width(), image.height()), (64, 48));
+    let png = dir.path().join("plan.png");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+        .args(["render", "--scene", SAMPLE, "--plan", "-270,187,600", "--yaw", "0", "--width", "64", "--height", "48"])
+        .arg("--out")
+        .arg(&png)
+        .output()
+        .expect("run landsketch render --plan");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let by_flags = image::open(&png).expect("the PNG").to_rgb8();
+    let by_viewpoint = image.to_rgb8();
+    let close = by_flags
+        .pixels()
+        .zip(by_viewpoint.pixels())
+        .filter(|(a, b)| a.0.iter().zip(b.0).all(|(x, y)| x.abs_diff(y) < 48))
+        .count();
+    assert!(
+        close as f64 > 0.9 * f64::from(64 * 48),
+        "the viewpoint's camera is the plan view's ({close} close pixels)"
+    );
+    // An unknown name is an error listing the scene's viewpoints.
+    let output = run("Nowhere", &dir.path().join("x.png"));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        !output.status.success() && stderr.contains("\"Nowhere\"") && stderr.contains("\"Bird's-eye\""),
+        "{stderr}"
+    );
+}

@@ -7,6 +7,7 @@ use landsketch::api::{Server, ServerConfig};
 use landsketch::fields::{self, ColorMapName, ColorMapSpec, FieldKind, Legend, LoadOptions, Lut, Mapping};
 use landsketch::gis::{Crs, CrsDefinition, Extent, ReprojectError, Transformer};
 use landsketch::prep::cache::DiskCache;
+use landsketch::render::image_format::ImageFormat;
 use landsketch::render::presets::PRESETS;
 use landsketch::render::projection::DataView;
 use landsketch::render::style::{FrameStyle, LayerStyle, PartialStyle};
@@ -43,7 +44,7 @@ enum Command {
     /// ground) next to plain image-space hatching with the same art map and tone.
     Coherence {
         /// Scene file.
-        #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+        #[arg(long, env = "LANDSKETCH_SCENE", default_value = landsketch::scene::SAMPLE_SCENE)]
         scene: PathBuf,
         /// Frame width in pixels.
         #[arg(long, default_value_t = 512)]
@@ -66,7 +67,7 @@ enum Command {
     /// Load a scene and print what it contains (terrain, species, layers, default camera).
     Info {
         /// Scene file.
-        #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+        #[arg(long, env = "LANDSKETCH_SCENE", default_value = landsketch::scene::SAMPLE_SCENE)]
         scene: PathBuf,
     },
     /// Serve rendered views over HTTP and WebSocket (README, "Server").
@@ -162,7 +163,7 @@ impl CacheArgs {
 #[derive(Args)]
 struct BenchArgs {
     /// Scene file whose placement rules are scaled to each plant count.
-    #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+    #[arg(long, env = "LANDSKETCH_SCENE", default_value = landsketch::scene::SAMPLE_SCENE)]
     scene: PathBuf,
     /// Plant counts of the generated scenes.
     #[arg(long, value_delimiter = ',', default_value = "100,1000,10000")]
@@ -195,9 +196,9 @@ struct BenchArgs {
 #[derive(Args)]
 struct RenderArgs {
     /// Scene file (data/<scene>/scene.toml).
-    #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+    #[arg(long, env = "LANDSKETCH_SCENE", default_value = landsketch::scene::SAMPLE_SCENE)]
     scene: PathBuf,
-    /// Output PNG file.
+    /// Output image file: PNG, or JPEG when it ends in `.jpg` or `.jpeg`.
     #[arg(long, default_value = "view.png")]
     out: PathBuf,
     /// Image width in pixels.
@@ -587,10 +588,16 @@ fn render(args: &RenderArgs) -> Result<()> {
         percent_of_source = stats.percent_drawn(),
         "rendered"
     );
-    image.save(&args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
+    // The file's extension picks the format (`.jpg`/`.jpeg` as the server encodes JPEG, else PNG).
+    let format = args.out.extension().and_then(|e| e.to_str()?.parse::<ImageFormat>().ok()).unwrap_or(ImageFormat::Png);
+    let bytes = format.encode(&image, Some(JPEG_QUALITY))?;
+    std::fs::write(&args.out, bytes).with_context(|| format!("cannot write {}", args.out.display()))?;
     println!("{}", args.out.display());
     Ok(())
 }
+
+/// JPEG quality of `landsketch render --out VIEW.jpg`.
+const JPEG_QUALITY: u8 = 88;
 
 /// The data layers of `--mappings` from the layer store in `--data-dir`; Table 9.1 warnings
 /// and clamped times go to stderr.

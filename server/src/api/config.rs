@@ -10,7 +10,7 @@ use std::time::Duration;
 #[command(name = "landsketch serve")]
 pub struct ServerConfig {
     /// Scene file to serve.
-    #[arg(long, env = "LANDSKETCH_SCENE", default_value = "data/boulder/scene.toml")]
+    #[arg(long, env = "LANDSKETCH_SCENE", default_value = crate::scene::SAMPLE_SCENE)]
     pub scene: PathBuf,
     /// Address to listen on (port 0 picks a free port).
     #[arg(long, env = "LANDSKETCH_ADDR", default_value = "127.0.0.1:8080")]

@@ -1,5 +1,8 @@
 //! The landscape scene: terrain mesh, plant models, vegetation placement and the scene file.
 
+/// The sample scene the commands and the server load when no `--scene` is given.
+pub const SAMPLE_SCENE: &str = "data/rbsf/scene.toml";
+
 pub mod camera;
 pub mod camera_params;
 pub mod config;
