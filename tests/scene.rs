@@ -271,3 +271,23 @@ fn render_takes_a_named_viewpoint_and_writes_jpeg_by_extension() {
         "{stderr}"
     );
 }
+
+#[test]
+fn render_takes_level_of_detail_thresholds_and_refuses_bad_ones() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let render = |lod: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+            .args(["render", "--scene", SAMPLE, "--width", "48", "--height", "32", "--no-cache", "--lod", lod])
+            .arg("--out")
+            .arg(dir.path().join("lod.png"))
+            .output()
+            .expect("run landsketch render")
+    };
+    let output = render(r#"{"hlp_px": 100, "full_px": 400}"#);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    for (lod, says) in [(r#"{"hlp_px": 1000}"#, "hlp_px <= full_px"), (r#"{"hlp": 1}"#, "unknown field `hlp`")] {
+        let output = render(lod);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success() && stderr.contains(says), "--lod {lod}: {stderr}");
+    }
+}

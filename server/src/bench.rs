@@ -4,7 +4,6 @@
 //! the source geometry drawn (the seeds' "% lod", thesis Table 8.1), preprocessing time, peak
 //! RSS and an estimate of GPU memory. No figure here is asserted anywhere; it is measured.
 
-use crate::prep::cache::DiskCache;
 use crate::render::projection::DataView;
 use crate::render::{FrameRequest, Gpu, RenderError, RenderOptions, Renderer, Style};
 use crate::scene::camera::Camera;
@@ -267,8 +266,9 @@ fn run_style(
 
 /// Runs the benchmark: for each plant count a scene from `scene_path`'s rules, for each of
 /// `styles` the frames of [`BenchOptions`], and when `data` has mappings the same frames again
-/// with its data layers (a style named `… + data`), so the two compare within one run. `cache` is the preprocessing cache to use (the
-/// first run bakes, later runs load).
+/// with its data layers (a style named `… + data`), so the two compare within one run.
+/// `render_options` are the renderer's (its preprocessing cache: the first run bakes, later
+/// runs load; the level-of-detail thresholds).
 #[allow(clippy::too_many_arguments)]
 pub fn run(
     gpu: Arc<Gpu>,
@@ -277,7 +277,7 @@ pub fn run(
     styles: &[(String, Style)],
     data: &DataView,
     options: &BenchOptions,
-    cache: Option<Arc<DiskCache>>,
+    render_options: &RenderOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<BenchReport, BenchError> {
     let mut scenes = Vec::new();
@@ -286,12 +286,12 @@ pub fn run(
         progress(&format!("generating the {plants}-plant scene"));
         let scene = scaled_scene(scene_path, plants)?;
         let cameras = walk(&scene, options.frames.max(1), options.step);
-        let before = cache.as_ref().map(|c| c.stats()).unwrap_or_default();
+        let cache = render_options.cache.as_ref();
+        let before = cache.map(|c| c.stats()).unwrap_or_default();
         let started = Instant::now();
-        let renderer =
-            Renderer::with_options(gpu.clone(), &scene, &RenderOptions { cache: cache.clone(), ..Default::default() })?;
+        let renderer = Renderer::with_options(gpu.clone(), &scene, render_options)?;
         let prep_ms = started.elapsed().as_secs_f64() * 1e3;
-        let after = cache.as_ref().map(|c| c.stats()).unwrap_or_default();
+        let after = cache.map(|c| c.stats()).unwrap_or_default();
         if scenes.is_empty() {
             copy_pass_ms = Stat::of(&renderer.time_copy_pass(options.width, options.height, options.frames.max(1))?);
         }

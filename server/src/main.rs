@@ -7,6 +7,7 @@ use landsketch::api::{Server, ServerConfig};
 use landsketch::fields::{self, ColorMapName, ColorMapSpec, FieldKind, Legend, LoadOptions, Lut, Mapping};
 use landsketch::gis::{Crs, CrsDefinition, Extent, ReprojectError, Transformer};
 use landsketch::prep::cache::DiskCache;
+use landsketch::prep::lod::LodSettings;
 use landsketch::render::image_format::ImageFormat;
 use landsketch::render::presets::PRESETS;
 use landsketch::render::projection::DataView;
@@ -139,13 +140,21 @@ struct CacheArgs {
     /// Keep preprocessing results in memory only.
     #[arg(long)]
     no_cache: bool,
+    /// Level-of-detail thresholds in projected plant height (pixels), a JSON object of any of
+    /// `full_px`, `hlp_px`, `min_px`, `mass_px`, `grid_px`, `fade`, e.g. `{"mass_px": 16}`.
+    #[arg(long, value_name = "JSON")]
+    lod: Option<String>,
 }
 
 impl CacheArgs {
     /// Renderer options with this disk cache.
     fn render_options(&self) -> Result<RenderOptions> {
+        let lod: LodSettings = match &self.lod {
+            Some(json) => serde_json::from_str(json).with_context(|| format!("--lod {json}: invalid JSON"))?,
+            None => LodSettings::default(),
+        };
         if self.no_cache {
-            return Ok(RenderOptions::default());
+            return Ok(RenderOptions { lod, ..RenderOptions::default() });
         }
         let dir = match &self.cache_dir {
             Some(dir) => dir.clone(),
@@ -156,7 +165,7 @@ impl CacheArgs {
                 .join("landsketch"),
         };
         let cache = DiskCache::open(&dir).with_context(|| format!("cannot open cache directory {}", dir.display()))?;
-        Ok(RenderOptions { cache: Some(Arc::new(cache)), ..RenderOptions::default() })
+        Ok(RenderOptions { cache: Some(Arc::new(cache)), lod, ..RenderOptions::default() })
     }
 }
 
@@ -723,10 +732,11 @@ fn bench(args: &BenchArgs) -> Result<()> {
         .map(|name| Ok((name.clone(), landsketch::render::presets::preset(name)?)))
         .collect::<Result<Vec<_>>>()?;
     let options = BenchOptions { frames: args.frames, width: args.width, height: args.height, step: args.step };
-    let cache = args.cache.render_options()?.cache;
+    let render_options = args.cache.render_options()?;
     let gpu = Arc::new(Gpu::new()?);
     let data = data_view(&args.data)?;
-    let report = run(gpu, &args.scene, &args.plants, &styles, &data, &options, cache, |step| info!("{step}"))?;
+    let report =
+        run(gpu, &args.scene, &args.plants, &styles, &data, &options, &render_options, |step| info!("{step}"))?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
