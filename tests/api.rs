@@ -664,6 +664,49 @@ async fn a_missing_scene_stops_the_server_with_an_error() {
     assert!(error.to_string().contains("no-such-scene.toml"), "{error}");
 }
 
+#[tokio::test]
+async fn health_reports_the_loading_stage_and_percent_until_the_scene_is_ready() {
+    // The valley sample (365,000 plants) loads for seconds: long enough to watch.
+    let data = tempfile::tempdir().expect("temp dir");
+    let config =
+        ServerConfig::try_parse_from(["serve", "--scene", landsketch::scene::SAMPLE_SCENE, "--addr", "127.0.0.1:0"])
+            .map(|mut c| {
+                c.data_dir = data.path().to_owned();
+                c
+            })
+            .expect("flags");
+    let server = Server::bind(config).await.expect("bind");
+    let url = format!("http://{}/api/health", server.local_addr().expect("address"));
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let running = tokio::spawn(server.run(async {
+        let _ = stopped.await;
+    }));
+    let mut seen = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(300);
+    loop {
+        let response = get(&url).await;
+        let status = response.status();
+        let body = json_of(response).await;
+        if body["status"] == "ok" {
+            assert_eq!(status, StatusCode::OK);
+            assert!(body.get("stage").is_none() && body.get("percent").is_none(), "{body}");
+            break;
+        }
+        assert_eq!((status, &body["status"]), (StatusCode::SERVICE_UNAVAILABLE, &json!("loading")));
+        if let (Some(stage), Some(percent)) = (body["stage"].as_str(), body["percent"].as_f64()) {
+            assert!((0.0..=100.0).contains(&percent) && body["stage_label"].is_string(), "{body}");
+            seen.push((stage.to_owned(), percent));
+        }
+        assert!(Instant::now() < deadline, "the scene did not load");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    // Stages in order, the percent never falling, preprocessing reached.
+    assert!(seen.windows(2).all(|w| w[0].1 <= w[1].1), "{seen:?}");
+    assert!(seen.iter().any(|(stage, _)| stage == "preprocessing"), "{seen:?}");
+    let _ = stop.send(());
+    running.await.expect("server task").expect("server stops cleanly");
+}
+
 /// `landsketch serve` prints the address to open in a browser, with the port it bound.
 #[test]
 fn serve_prints_the_address_to_open() {

@@ -56,6 +56,22 @@ export async function getJSON(path, init) {
   return (await request(path, init)).json();
 }
 
+/**
+ * Waits until the server has loaded its scene (`GET /api/health` says `ok`), calling
+ * `onLoading(health)` with each answer while it loads (`stage`, `percent`); `wait(ms)` sleeps
+ * between polls. Rejects when the server answers neither `ok` nor `loading`.
+ */
+export async function waitUntilReady(onLoading, { fetchImpl = fetch, wait = (ms) => new Promise((r) => setTimeout(r, ms)), intervalMs = 500 } = {}) {
+  for (;;) {
+    const response = await fetchImpl('/api/health');
+    const health = await response.clone().json().catch(() => ({}));
+    if (health.status === 'ok') return health;
+    if (health.status !== 'loading') throw await errorOf(response);
+    onLoading(health);
+    await wait(intervalMs);
+  }
+}
+
 /** Every comment, hidden and pending ones too (the planner's moderation list). */
 export async function allComments() {
   return (await getJSON('/api/comments?status=all', authorized())).comments ?? [];

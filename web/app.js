@@ -1,7 +1,7 @@
 // The landsketch viewer: a WebSocket session shows the landscape, the panels change the view,
 // and the page's address always holds the view as `GET /api/render` parameters.
 
-import { ApiError, checkAuth, deleteLayer, deleteViewpoint, getBlob, getJSON, resolveStyles, saveViewpoint, setAdminToken } from './api.js';
+import { ApiError, checkAuth, deleteLayer, deleteViewpoint, getBlob, getJSON, resolveStyles, saveViewpoint, setAdminToken, waitUntilReady } from './api.js';
 import { ArtMapsPanel } from './artmaps.js';
 import { CommentsPanel } from './comments.js';
 import { Connection, statsText } from './connection.js';
@@ -997,6 +997,12 @@ async function main() {
   let scene;
   let openapi;
   try {
+    // While the server loads its scene, say how far it has come.
+    await waitUntilReady((health) => {
+      const stage = t(`stage.${health.stage ?? 'starting'}`);
+      say(t('msg.loading', { stage, percent: Math.round(health.percent ?? 0) }), 'info');
+    });
+    say('', 'info');
     [scene, openapi] = await Promise.all([getJSON('/api/scene'), getJSON('/api/openapi.json')]);
   } catch (error) {
     say(t('msg.notReady', { reason: error.message }));

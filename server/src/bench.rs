@@ -123,7 +123,7 @@ pub fn scaled_scene(path: &Path, target: usize) -> Result<Scene, BenchError> {
         for rule in config.layers.iter_mut().flat_map(|l| l.rules.iter_mut()) {
             rule.density = (rule.density * factor).min(10_000.0);
         }
-        Ok(Scene::from_config_file(&config, path)?)
+        Ok(Scene::from_config_file(&config, path, &crate::progress::Silent)?)
     };
     let mut factor = 1.0;
     let mut scene = build(factor)?;

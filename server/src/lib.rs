@@ -15,6 +15,7 @@ pub mod echo;
 pub mod fields;
 pub mod gis;
 pub mod prep;
+pub mod progress;
 pub mod render;
 pub mod rng;
 pub mod scene;

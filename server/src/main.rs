@@ -8,6 +8,7 @@ use landsketch::fields::{self, ColorMapName, ColorMapSpec, FieldKind, Legend, Lo
 use landsketch::gis::{Crs, CrsDefinition, Extent, ReprojectError, Transformer};
 use landsketch::prep::cache::DiskCache;
 use landsketch::prep::lod::LodSettings;
+use landsketch::progress::{Progress, Stage};
 use landsketch::render::image_format::ImageFormat;
 use landsketch::render::presets::PRESETS;
 use landsketch::render::projection::DataView;
@@ -295,7 +296,9 @@ fn main() -> Result<()> {
             Ok(())
         }
         Command::Info { scene } => {
-            let scene = load_scene(&scene)?;
+            let bar = LoadBar::start();
+            let scene = load_scene(&scene, &bar)?;
+            bar.finish();
             let ([x0, y0], [x1, y1]) = scene.terrain.bounds();
             println!("scene      {}", scene.name);
             println!(
@@ -378,11 +381,48 @@ fn wgs84_extent(crs: &Crs, e: &Extent) -> Result<([f64; 2], [f64; 2]), Reproject
     }
 }
 
-fn load_scene(path: &Path) -> Result<Scene> {
+/// Loads a scene file, its stages shown on `bar`.
+fn load_scene(path: &Path, bar: &LoadBar) -> Result<Scene> {
     let started = std::time::Instant::now();
-    let scene = Scene::load(path)?;
+    let scene = Scene::load_with(path, bar)?;
     info!(scene = %scene.name, plants = scene.plant_count(), ms = started.elapsed().as_millis() as u64, "scene loaded");
     Ok(scene)
+}
+
+/// The command line's progress bar while a scene loads and the renderer preprocesses it
+/// (`render`, `info`, `coherence`); drawn on stderr only when that is a terminal.
+struct LoadBar(indicatif::ProgressBar);
+
+impl LoadBar {
+    fn start() -> Arc<LoadBar> {
+        let bar = indicatif::ProgressBar::new(100);
+        if let Ok(style) = indicatif::ProgressStyle::with_template("{bar:30} {pos:>3} % {msg}") {
+            bar.set_style(style);
+        }
+        Arc::new(LoadBar(bar))
+    }
+
+    /// The renderer options of `cache` reporting to this bar.
+    fn render_options(self: &Arc<Self>, cache: &CacheArgs) -> Result<RenderOptions> {
+        Ok(RenderOptions { progress: Some(self.clone()), ..cache.render_options()? })
+    }
+
+    fn finish(&self) {
+        self.0.finish_and_clear();
+    }
+}
+
+impl std::fmt::Debug for LoadBar {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("LoadBar")
+    }
+}
+
+impl Progress for LoadBar {
+    fn report(&self, stage: Stage, fraction: f32) {
+        self.0.set_position(stage.percent(fraction).round() as u64);
+        self.0.set_message(stage.label());
+    }
 }
 
 /// A JSON object given inline or as the path of a JSON file: the style fields of `--style`,
@@ -534,9 +574,11 @@ fn coherence(
     use landsketch::render::coherence::{Flicker, camera_path, flicker};
     use landsketch::render::style::{HatchSpace, TerrainStrokes};
     let styles = view_style(None, style, &[])?;
-    let scene = load_scene(scene)?;
+    let bar = LoadBar::start();
+    let scene = load_scene(scene, &bar)?;
     let base = frame_style(&styles, &scene)?.base;
-    let renderer = Renderer::with_options(Arc::new(Gpu::new()?), &scene, &cache.render_options()?)?;
+    let renderer = Renderer::with_options(Arc::new(Gpu::new()?), &scene, &bar.render_options(cache)?)?;
+    bar.finish();
     let path = camera_path(&scene.default_camera, steps);
     // The default: hybrid plants on object-space terrain (fall line unless the style names a
     // direction); the baseline: image-space hatching of both.
@@ -579,14 +621,16 @@ fn coherence(
 
 fn render(args: &RenderArgs) -> Result<()> {
     let mut styles = view_style(args.preset.as_deref(), args.style.as_deref(), &args.layer_style)?;
-    let scene = load_scene(&args.scene)?;
+    let bar = LoadBar::start();
+    let scene = load_scene(&args.scene, &bar)?;
     let camera = match &args.viewpoint {
         Some(name) => viewpoint_camera(&args.scene, name, &scene, &mut styles)?,
         None => camera(args, &scene)?,
     };
     let style = frame_style(&styles, &scene)?;
     let gpu = Arc::new(Gpu::new()?);
-    let renderer = Renderer::with_options(gpu, &scene, &args.cache.render_options()?)?;
+    let renderer = Renderer::with_options(gpu, &scene, &bar.render_options(&args.cache)?)?;
+    bar.finish();
     let started = std::time::Instant::now();
     let data = data_view(&args.data)?;
     let frame = renderer.render(FrameRequest::new(&camera, &style, args.width, args.height).data(&data))?;

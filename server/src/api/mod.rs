@@ -27,6 +27,7 @@ pub use config::ServerConfig;
 pub use error::ApiError;
 
 use crate::fields::SceneGeo;
+use crate::progress::{LoadProgress, Stage};
 use crate::render::{Gpu, RenderError};
 use crate::scene::{Scene, SceneError};
 use crate::store::participation::{ParticipationError, ParticipationStore, SqlStore};
@@ -120,6 +121,8 @@ struct Inner {
     events: events::Events,
     started: Instant,
     ready: OnceLock<Ready>,
+    /// How far loading the scene has come (`GET /api/health` while loading).
+    loading: Arc<LoadProgress>,
     shutdown: watch::Sender<bool>,
     /// Permits for decoding uploads (`--upload-decodes`).
     decodes: Arc<tokio::sync::Semaphore>,
@@ -145,6 +148,7 @@ impl AppState {
             events: events::Events::default(),
             started: Instant::now(),
             ready: OnceLock::new(),
+            loading: Arc::default(),
             shutdown: watch::Sender::new(false),
         }))
     }
@@ -187,6 +191,11 @@ impl AppState {
     /// The loaded scene and renderer; `None` while loading.
     pub fn ready(&self) -> Option<&Ready> {
         self.0.ready.get()
+    }
+
+    /// The loading stage reached and the percent done, while the scene loads.
+    pub fn loading(&self) -> Option<(Stage, f32)> {
+        self.0.loading.current()
     }
 
     /// Time since the server started.
@@ -440,13 +449,14 @@ async fn load(state: AppState, loaded: Option<(Arc<Scene>, Arc<Gpu>)>) -> Result
         let config = state.config();
         let (scene, gpu) = match loaded {
             Some(loaded) => loaded,
-            None => (Arc::new(Scene::load(&config.scene)?), Arc::new(Gpu::new()?)),
+            None => (Arc::new(Scene::load_with(&config.scene, &*state.0.loading)?), Arc::new(Gpu::new()?)),
         };
         let adapter = gpu.adapter_info.name.clone();
         let scene_id = scene_id(&config.scene, &adapter)?;
         let metrics = state.metrics().clone();
         let queue_depth = usize::try_from(config.queue_depth).unwrap_or(usize::MAX);
-        let options = config.render_options()?;
+        let options =
+            crate::render::RenderOptions { progress: Some(state.0.loading.clone()), ..config.render_options()? };
         let pool = RenderPool::start(
             gpu,
             scene.clone(),

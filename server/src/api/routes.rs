@@ -7,6 +7,7 @@ use super::error::{ApiError, ErrorBody};
 use super::pool::PoolError;
 use super::view::{ImageFormat, RenderQuery, Source, ViewParams, ViewRequest};
 use super::{AppState, Ready};
+use crate::progress::Stage;
 use crate::render::presets::PRESETS;
 use crate::render::style::{FieldSchema, PartialStyle};
 use crate::render::view_style::{ResolvedStyles, ViewStyle};
@@ -30,6 +31,15 @@ use utoipa::ToSchema;
 pub struct Health {
     /// `ok` when the scene is loaded and rendering, `loading` before.
     pub status: &'static str,
+    /// While loading: the stage reached (`terrain`, `drape`, `placement`, `preprocessing`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stage: Option<Stage>,
+    /// While loading: the stage in words, for people waiting.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stage_label: Option<&'static str>,
+    /// While loading: percent of the load done (an estimate: each stage has a fixed share).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub percent: Option<f32>,
     /// Server version.
     pub version: &'static str,
     /// Seconds since the server started.
@@ -191,8 +201,12 @@ pub struct CacheCleared {
     (status = 503, description = "The scene is still loading", body = Health)))]
 pub async fn health(State(state): State<AppState>) -> Response {
     let ready = state.ready();
+    let loading = if ready.is_some() { None } else { state.loading() };
     let health = Health {
         status: if ready.is_some() { "ok" } else { "loading" },
+        stage: loading.map(|(stage, _)| stage),
+        stage_label: loading.map(|(stage, _)| stage.label()),
+        percent: loading.map(|(_, percent)| percent),
         version: env!("CARGO_PKG_VERSION"),
         uptime_s: state.uptime().as_secs_f64(),
         adapter: ready.map(|r| r.adapter.clone()),

@@ -19,6 +19,7 @@ use super::style::{FrameStyle, STYLE_SLOTS, Style, art_groups, style_slot};
 use super::{Gpu, RenderError, readback, uniforms};
 use crate::prep::cache::DiskCache;
 use crate::prep::lod::LodSettings;
+use crate::progress::{Progress, Silent};
 use crate::scene::Scene;
 use crate::scene::camera::Camera;
 use std::sync::Arc;
@@ -82,6 +83,8 @@ pub struct RenderOptions {
     /// Time the passes of every n-th frame (available from [`Renderer::take_pass_times`]); 0
     /// never does.
     pub profile_every: u32,
+    /// Where building the renderer reports its preprocessing; `None`: nowhere.
+    pub progress: Option<Arc<dyn Progress>>,
 }
 
 /// What a frame reads back besides its image.
@@ -215,7 +218,8 @@ impl Renderer {
     pub fn with_options(gpu: Arc<Gpu>, scene: &Scene, options: &RenderOptions) -> Result<Renderer, RenderError> {
         options.lod.validate().map_err(RenderError::Options)?;
         let geometry = GeometryPass::new(&gpu.device);
-        let scene_gpu = SceneGpu::new(&gpu, &geometry, scene, options.cache.as_deref())?;
+        let progress: &dyn Progress = options.progress.as_deref().unwrap_or(&Silent);
+        let scene_gpu = SceneGpu::new(&gpu, &geometry, scene, options.cache.as_deref(), progress)?;
         let glyphs = GlyphAtlas::digits();
         Ok(Renderer {
             glyph_texture: glyphs.upload(&gpu.device, &gpu.queue),

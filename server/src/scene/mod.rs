@@ -18,6 +18,7 @@ pub mod tour;
 pub mod vegetation;
 
 use crate::gis::{self, CrsDefinition, GisError, ReprojectError, SceneTarget, VectorError};
+use crate::progress::{Progress, Silent, Stage};
 use camera::Camera;
 use config::{SceneConfig, SpeciesConfig};
 use plant::{ModelError, PlantModel};
@@ -100,22 +101,29 @@ pub struct Scene {
 impl Scene {
     /// Loads a scene file and everything it names: DEM, models, land cover; places plants.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_with(path, &Silent)
+    }
+
+    /// [`Scene::load`] reporting its stages to `progress`.
+    pub fn load_with(path: &Path, progress: &dyn Progress) -> Result<Scene, SceneError> {
         let config = SceneConfig::load(path)?;
-        Scene::from_config_file(&config, path)
+        Scene::from_config_file(&config, path, progress)
     }
 
     /// [`Scene::from_config`] for a config read from the scene file `path`: relative paths are
     /// resolved against its directory and errors name the file.
-    pub fn from_config_file(config: &SceneConfig, path: &Path) -> Result<Scene, SceneError> {
+    pub fn from_config_file(config: &SceneConfig, path: &Path, progress: &dyn Progress) -> Result<Scene, SceneError> {
         let base = path.parent().unwrap_or(Path::new("."));
-        Scene::from_config(config, base).map_err(|e| match e {
+        Scene::from_config(config, base, progress).map_err(|e| match e {
             SceneError::Invalid(message) => SceneError::Parse { path: path.to_owned(), message },
             other => other,
         })
     }
 
-    /// Builds a scene from a parsed config; relative paths are resolved against `base`.
-    pub fn from_config(config: &SceneConfig, base: &Path) -> Result<Scene, SceneError> {
+    /// Builds a scene from a parsed config; relative paths are resolved against `base`; the
+    /// stages (terrain, drape, placement) are reported to `progress`.
+    pub fn from_config(config: &SceneConfig, base: &Path, progress: &dyn Progress) -> Result<Scene, SceneError> {
+        progress.report(Stage::Terrain, 0.0);
         let dem_path = base.join(&config.terrain.dem);
         let mut dem = load_dem(&config.terrain, &dem_path)?;
         // The DEM's full CRS definition, needed only to bring other data into the scene: a DEM
@@ -128,6 +136,7 @@ impl Scene {
             dem.crs = def.crs();
         }
         let mut terrain = Terrain::new(dem, config.terrain.albedo)?;
+        progress.report(Stage::Drape, 0.0);
         let scene_def = || {
             scene_crs.clone().map_err(|source| SceneError::Gis(GisError::Reproject { path: dem_path.clone(), source }))
         };
@@ -161,7 +170,8 @@ impl Scene {
             .collect::<Result<Vec<_>, SceneError>>()?;
 
         let mut layers = Vec::new();
-        for layer in &config.layers {
+        for (index, layer) in config.layers.iter().enumerate() {
+            progress.report(Stage::Placement, index as f32 / config.layers.len() as f32);
             let rules = layer
                 .rules
                 .iter()
@@ -208,6 +218,7 @@ impl Scene {
                 plants.extend(plan::place_plan(plan, &features, &path, &terrain, &species, seed, remaining)?);
             }
             info!(layer = %layer.name, plants = plants.len(), "vegetation placed");
+            progress.report(Stage::Placement, (index + 1) as f32 / config.layers.len() as f32);
             layers.push(VegetationLayer { name: layer.name.clone(), plants });
         }
 

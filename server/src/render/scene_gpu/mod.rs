@@ -30,6 +30,7 @@ use crate::prep::leaves::PARTICLE_SHARES;
 use crate::prep::lod::{Billboard, LodLevel};
 use crate::prep::masses::{self as mass_groups, MassPlant, Masses};
 use crate::prep::terrain_lod::{TerrainChunk, TerrainLod};
+use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
 use cull::reference_grid;
 use glam::Vec3;
@@ -143,13 +144,16 @@ pub struct SceneGpu {
 
 impl SceneGpu {
     /// Uploads the terrain, every species' model at all levels of detail (baking billboard
-    /// atlases, or loading them from `disk`) and the plant instances of `scene`.
+    /// atlases, or loading them from `disk`) and the plant instances of `scene`, reporting the
+    /// preprocessing stage to `progress`.
     pub fn new(
         gpu: &Gpu,
         pass: &GeometryPass,
         scene: &Scene,
         disk: Option<&DiskCache>,
+        progress: &dyn Progress,
     ) -> Result<SceneGpu, RenderError> {
+        progress.report(Stage::Preprocessing, 0.0);
         let (device, queue) = (&gpu.device, &gpu.queue);
         let mut up = Uploader::new(device, queue, pass, disk);
         let terrain_lod = TerrainLod::build(&scene.terrain, TERRAIN_CHUNK_CELLS, TERRAIN_LEVELS);
@@ -164,6 +168,7 @@ impl SceneGpu {
             "terrain crease lines"
         );
         let creases = crease_buffer(device, &segments);
+        progress.report(Stage::Preprocessing, 0.2);
         let baker = Baker::new(device, &pass.material_layout);
         let mut species = Vec::with_capacity(scene.species.len());
         let mut plant_boards = Vec::with_capacity(scene.species.len());
@@ -172,6 +177,7 @@ impl SceneGpu {
             let board = Billboard::of_model(&s.model);
             species.push(up.species(gpu, &baker, &s.model, s.hlp_radius, &hlps, board)?);
             plant_boards.push((hlps, board));
+            progress.report(Stage::Preprocessing, 0.2 + 0.5 * species.len() as f32 / scene.species.len() as f32);
         }
 
         // Each layer's plants grouped into vegetation masses (`prep::masses`).
@@ -224,6 +230,7 @@ impl SceneGpu {
         let grid = reference_grid(&mut plants, &species, REFERENCE_GRID_SPACING);
         let masses = MassGpu::new(&mut up, &layer_masses, &grid);
         let cells = grid.spheres;
+        progress.report(Stage::Preprocessing, 1.0);
         let source_triangles = scene.terrain.mesh.triangle_count() as u64
             + plants.iter().map(|p| species[p.species].triangles[LodLevel::Full.index()]).sum::<u64>();
         info!(
