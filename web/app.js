@@ -454,15 +454,23 @@ function planStyle() {
   return plan ? app.view.layerStyles[plan.name] ?? null : null;
 }
 
-/** Shows or hides the planned layer and draws it in colour ("highlight") or like the rest. */
+/** Whether the view highlights the plan (style `focus`: the plan in colour, the rest lighter). */
+function planHighlighted() {
+  return (app.view.style.focus ?? 0) > 0;
+}
+
+/** Shows or hides the planned layer and highlights it (style `focus`) or not. */
 function setPlanState(shown, highlight) {
   const plan = planLayer();
   if (!plan) return;
   const styles = { ...app.view.layerStyles };
-  if (!shown) styles[plan.name] = { visible: false };
-  else if (highlight) styles[plan.name] = { preset: 'photorealism' };
-  else delete styles[plan.name];
+  if (shown) delete styles[plan.name];
+  else styles[plan.name] = { visible: false };
   app.view.layerStyles = styles;
+  const style = { ...app.view.style };
+  if (shown && highlight) style.focus = 1;
+  else delete style.focus;
+  app.view.style = style;
   app.styles.refresh();
   changed('style');
 }
@@ -477,7 +485,7 @@ function showPlanState() {
   const style = planStyle();
   const shown = style?.visible !== false;
   $('with-plan').setAttribute('aria-pressed', String(shown));
-  $('highlight-plan').setAttribute('aria-pressed', String(shown && style?.preset === 'photorealism'));
+  $('highlight-plan').setAttribute('aria-pressed', String(shown && planHighlighted()));
   $('highlight-plan').disabled = !shown;
   $('legend-planned-text').textContent = t(shown ? 'legend.planned' : 'legend.plannedOff');
 }
@@ -793,7 +801,7 @@ function setupViewer() {
   $('tour').addEventListener('click', toggleTour);
   $('tour').hidden = false;
   $('with-plan').addEventListener('click', () => setPlanState(planStyle()?.visible === false, false));
-  $('highlight-plan').addEventListener('click', () => setPlanState(true, planStyle()?.preset !== 'photorealism'));
+  $('highlight-plan').addEventListener('click', () => setPlanState(true, !planHighlighted()));
   for (const id of ['go-plan', 'with-plan', 'highlight-plan']) $(id).hidden = !planLayer();
   $('legend-planned').hidden = !planLayer();
   $('screenshot').addEventListener('click', screenshot);

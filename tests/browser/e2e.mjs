@@ -319,7 +319,8 @@ try {
     await stillAfter(page, () => page.locator('#with-plan').click());
     assert.ok(difference(without, await pixels(page)) > CHANGED, 'the plan is back');
     await stillAfter(page, () => page.locator('#highlight-plan').click());
-    await linked(page, 'layer_styles', (v) => v === JSON.stringify({ planned: { preset: 'photorealism' } }));
+    await linked(page, 'style', (v) => v !== null && JSON.parse(v).focus === 1);
+    assert.equal(await page.locator('#highlight-plan').getAttribute('aria-pressed'), 'true');
     await shot(page, 'citizen-highlight');
     const coloured = await page.evaluate(() => {
       const c = document.getElementById('frame');

@@ -206,7 +206,7 @@ pub async fn health(State(state): State<AppState>) -> Response {
         status: if ready.is_some() { "ok" } else { "loading" },
         stage: loading.map(|(stage, _)| stage),
         stage_label: loading.map(|(stage, _)| stage.label()),
-        percent: loading.map(|(_, percent)| percent),
+        percent: loading.map(|(_, percent)| (percent * 10.0).round() / 10.0),
         version: env!("CARGO_PKG_VERSION"),
         uptime_s: state.uptime().as_secs_f64(),
         adapter: ready.map(|r| r.adapter.clone()),

@@ -580,7 +580,9 @@ impl Style {
     }
 
     /// This (resolved) style with its `focus` f applied: the plan layer (`plan`) gets colour
-    /// under its ink (at least 0.85 f) and saturation (at least 1 + 0.8 f), everything else
+    /// under its ink (at least f), saturation (at least 1 + 0.8 f) and hatching lifted by at
+    /// least 0.3 f (`hatch_brightness`, so the colour shows between the strokes; its lines
+    /// stay), everything else
     /// keeps `1 − 0.5 f` of its hatching, crease and land-cover lines, `1 − 0.4 f` of its
     /// contours and silhouettes and `1 − 0.7 f` of its saturation, so the plan stands out by
     /// detail, contrast and colour in every style.
@@ -588,8 +590,9 @@ impl Style {
         let f = self.focus;
         if plan {
             return Style {
-                color: self.color.max(0.85 * f),
+                color: self.color.max(f),
                 color_saturation: self.color_saturation.max(1.0 + 0.8 * f),
+                hatch_brightness: self.hatch_brightness.max(0.3 * f),
                 ..self.clone()
             };
         }
