@@ -58,13 +58,27 @@ pub struct LodSettings {
     pub grid_px: f32,
     /// Half-width of the blend band around each threshold, relative to it (0 = hard switch).
     pub fade: f32,
+    /// At most about this many plants of a frame get their HLP billboard clouds (or the full
+    /// model): beyond it the HLP threshold of that frame rises to the size of the budget's
+    /// plants, so the nearest keep their detail and a dense forest in front of the eye
+    /// costs what the budget does ([`LodSettings::within_budget`]); 0 = no limit.
+    pub hlp_budget: u32,
     /// Draw every plant at this level (for tests and comparisons); `None` selects by size.
     pub force: Option<LodLevel>,
 }
 
 impl Default for LodSettings {
     fn default() -> Self {
-        LodSettings { full_px: 160.0, hlp_px: 40.0, min_px: 1.5, mass_px: 8.0, grid_px: 12.0, fade: 0.2, force: None }
+        LodSettings {
+            full_px: 160.0,
+            hlp_px: 40.0,
+            min_px: 1.5,
+            mass_px: 8.0,
+            grid_px: 12.0,
+            fade: 0.2,
+            hlp_budget: 400,
+            force: None,
+        }
     }
 }
 
@@ -94,6 +108,22 @@ impl LodSettings {
                  and mass_px 0 or with its band between min_px and the HLP band"
                 .into())
         }
+    }
+
+    /// These settings for a frame whose plants are `sizes` pixels tall (reordered): when more
+    /// than `hlp_budget` of them reach the HLP band, its threshold rises so that only the
+    /// largest `hlp_budget` do (the full-model threshold with it where it would fall below).
+    pub fn within_budget(&self, sizes: &mut [f32]) -> LodSettings {
+        let budget = self.hlp_budget as usize;
+        let lower_edge = self.hlp_px * (1.0 - self.fade);
+        if budget == 0 || self.force.is_some() || sizes.iter().filter(|&&px| px > lower_edge).count() <= budget {
+            return *self;
+        }
+        // The largest plant beyond the budget: the band's lower edge moves to it, so only the
+        // larger ones reach the band.
+        let (_, &mut first_out, _) = sizes.select_nth_unstable_by(budget, |a, b| b.total_cmp(a));
+        let hlp_px = first_out / (1.0 - self.fade);
+        LodSettings { hlp_px, full_px: self.full_px.max(hlp_px), ..*self }
     }
 
     /// Whether plants far away are drawn by their vegetation masses (not when a level is forced).
@@ -340,6 +370,27 @@ mod tests {
         assert!(LodSettings { hlp_px: 500.0, ..s }.validate().is_err());
         assert!(LodSettings { mass_px: 36.0, ..s }.validate().is_err(), "mass band inside the HLP band");
         s.validate().unwrap();
+    }
+
+    #[test]
+    fn the_hlp_budget_keeps_the_largest_plants_detailed() {
+        let s = LodSettings { hlp_budget: 3, ..LodSettings::default() };
+        let hlp = |settings: &LodSettings, sizes: &[f32]| {
+            sizes
+                .iter()
+                .filter(|&&px| settings.select(px, false).iter().flatten().any(|d| d.level != LodLevel::Plant))
+                .count()
+        };
+        // Within the budget nothing changes.
+        let few = [300.0, 100.0, 50.0, 10.0];
+        assert_eq!(s.within_budget(&mut few.clone()), s);
+        // Ten plants in the HLP band: only the three largest keep more than a billboard, and the
+        // full-model threshold stays above the HLP one.
+        let many: Vec<f32> = (0..10).map(|i| 200.0 - 15.0 * i as f32).chain([5.0, 2.0]).collect();
+        let framed = s.within_budget(&mut many.clone());
+        assert_eq!(hlp(&framed, &many), 3, "{framed:?}");
+        assert!(framed.full_px >= framed.hlp_px && framed.validate().is_ok());
+        assert_eq!(hlp(&LodSettings { hlp_budget: 0, ..s }.within_budget(&mut many.clone()), &many), 10);
     }
 
     #[test]

@@ -117,11 +117,13 @@ impl SceneGpu {
         let mut particle_runs = Runs::<Share>::new(self.species.len());
         let mut stats = DrawStats { plants: self.plants.len() as u64, ..DrawStats::default() };
         let mut references = References::default();
+        // The plants in view with their projected size; the frame's HLP budget applies to
+        // them all before any level is chosen.
+        let mut in_view = Vec::new();
         for (index, plant) in self.plants.iter().enumerate() {
             let s = &self.species[plant.species];
             let i = &plant.instance;
             let drawn_as = layer(i.object_id);
-            let slot = LayerCode::of_object_id(i.object_id).slot();
             if !drawn_as.visible {
                 continue;
             }
@@ -138,6 +140,14 @@ impl SceneGpu {
                     s.height * i.offset_scale[3] * px_per_metre / depth
                 }
             };
+            in_view.push((index, px, drawn_as));
+        }
+        let lod = &lod.within_budget(&mut in_view.iter().map(|&(_, px, _)| px).collect::<Vec<_>>());
+        for (index, px, drawn_as) in in_view {
+            let plant = &self.plants[index];
+            let s = &self.species[plant.species];
+            let i = &plant.instance;
+            let slot = LayerCode::of_object_id(i.object_id).slot();
             let draws = lod.select(px, plant.massed);
             if draws[0].is_none() {
                 continue;
