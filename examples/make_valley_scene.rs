@@ -21,14 +21,14 @@
 //! ```
 
 use glam::Vec2;
-use landsketch::gis::{GeoTransform, LocalFrame, Raster, load_raster, write_geotiff_f32, write_geotiff_u8};
+use landsketch::gis::{LocalFrame, Raster, load_raster, write_geotiff_f32, write_geotiff_u8};
 use landsketch::prep::creases::{CreaseKind, crease_lines};
 use landsketch::scene::terrain::Terrain;
 use std::path::Path;
 
-#[path = "common/noise.rs"]
-mod noise;
-use noise::value_noise;
+#[path = "common/landcover.rs"]
+mod landcover;
+use landcover::{DemSampler, Ground, fill, refined_grid, value_noise};
 
 /// Land-cover classes (NLCD codes; the scene file names them for this valley).
 const WATER: u8 = 11;
@@ -67,34 +67,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         _ => return Err("usage: make_valley_scene SHARED_ECUADOR_RBSF_DIR OUT_DIR".into()),
     };
     let dem = load_raster(&source.join("dem_10m.tif"))?;
-    let frame = LocalFrame::for_raster(&dem)?;
+    let ground = DemSampler { dem: &dem, frame: LocalFrame::for_raster(&dem)? };
+    let frame = &ground.frame;
     let terrain = Terrain::new(dem.clone(), [0.5; 3])?;
     let rivers: Vec<(Vec2, Vec2, f64)> = crease_lines(&terrain)
         .into_iter()
         .filter(|s| s.kind == CreaseKind::Valley && s.measure >= STREAM_AREA)
         .map(|s| (s.a.truncate(), s.b.truncate(), river_half_width(s.measure)))
         .collect();
-    let (w, h) = (dem.width * REFINE, dem.height * REFINE);
-    let transform = GeoTransform {
-        cell_width: dem.transform.cell_width / REFINE as f64,
-        cell_height: dem.transform.cell_height / REFINE as f64,
-        ..dem.transform
-    };
-    let blank = Raster {
-        width: w,
-        height: h,
-        data: vec![0.0; w * h],
-        nodata: Some(0.0),
-        transform,
-        crs: dem.crs,
-        palette: None,
-    };
-    let mut existing = blank.clone();
-    let mut planned = blank;
-    let height = |x: f64, y: f64| {
-        let (cx, cy) = frame.to_crs(x, y);
-        dem.sample_bilinear(cx, cy)
-    };
+    let mut existing = refined_grid(&dem, REFINE);
+    let mut planned = existing.clone();
+    let transform = existing.transform;
     // Half the width of the widest river at (x, y), if one runs there.
     let river_at = |x: f64, y: f64| {
         let p = Vec2::new(x as f32, y as f32);
@@ -109,71 +92,56 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             water(x + r * a.cos(), y + r * a.sin())
         })
     };
-    for row in 0..h {
-        for col in 0..w {
-            let (cx, cy) = existing.cell_center(col, row);
-            let (x, y) = frame.to_local(cx, cy);
-            let d = 20.0;
-            let (Some(z), Some(e), Some(wst), Some(n), Some(s)) =
-                (height(x, y), height(x + d, y), height(x - d, y), height(x, y + d), height(x, y - d))
-            else {
-                continue;
-            };
-            let (gx, gy) = ((e - wst) / (2.0 * d), (n - s) / (2.0 * d));
-            let slope = gx.hypot(gy).atan().to_degrees();
-            let noise = 0.65 * value_noise(x, y, 260.0, 1) + 0.35 * value_noise(x, y, 80.0, 2);
-            let scars = value_noise(x, y, 70.0, 3);
-            let bracken = value_noise(x, y, 120.0, 4);
-            // Pastures: the valley floor, and the slopes north-west of the river up to about
-            // 2,250 m, with a gallery forest along the streams and remnant patches of forest.
-            let north_west = (PASTURE_SIDE.1.0 - PASTURE_SIDE.0.0) * (y - PASTURE_SIDE.0.1)
-                - (PASTURE_SIDE.1.1 - PASTURE_SIDE.0.1) * (x - PASTURE_SIDE.0.0)
-                > 0.0;
-            let gallery = [0.5, 1.0].iter().any(|f| near(&stream, x, y, f * GALLERY));
-            let remnant = value_noise(x, y, 150.0, 5) > 0.5;
-            let pasture = slope < 35.0
-                && !gallery
-                && !remnant
-                && (z < 1900.0 + 40.0 * noise || (north_west && z < 2250.0 + 50.0 * noise));
-            existing.data[row * w + col] = f64::from(if river(x, y) {
-                WATER
-            } else if z > 3010.0 + 60.0 * noise {
-                GRASS
-            } else if z > 2820.0 + 80.0 * noise {
-                SHRUB
-            } else if pasture {
-                if bracken > 0.6 { SHRUB } else { PASTURE }
-            } else if slope > 40.0 && scars > 0.55 {
-                BARREN
-            } else if z > 2300.0 + 100.0 * noise {
-                UPPER_FOREST
-            } else {
-                LOWER_FOREST
-            });
+    fill(&mut existing, frame, |x, y, _| {
+        let Some(Ground { z, slope, .. }) = ground.ground(x, y, 20.0) else { return 0 };
+        let noise = 0.65 * value_noise(x, y, 260.0, 1) + 0.35 * value_noise(x, y, 80.0, 2);
+        let scars = value_noise(x, y, 70.0, 3);
+        let bracken = value_noise(x, y, 120.0, 4);
+        // Pastures: the valley floor, and the slopes north-west of the river up to about
+        // 2,250 m, with a gallery forest along the streams and remnant patches of forest.
+        let north_west = (PASTURE_SIDE.1.0 - PASTURE_SIDE.0.0) * (y - PASTURE_SIDE.0.1)
+            - (PASTURE_SIDE.1.1 - PASTURE_SIDE.0.1) * (x - PASTURE_SIDE.0.0)
+            > 0.0;
+        let gallery = [0.5, 1.0].iter().any(|f| near(&stream, x, y, f * GALLERY));
+        let remnant = value_noise(x, y, 150.0, 5) > 0.5;
+        let pasture = slope < 35.0
+            && !gallery
+            && !remnant
+            && (z < 1900.0 + 40.0 * noise || (north_west && z < 2250.0 + 50.0 * noise));
+        if river(x, y) {
+            WATER
+        } else if z > 3010.0 + 60.0 * noise {
+            GRASS
+        } else if z > 2820.0 + 80.0 * noise {
+            SHRUB
+        } else if pasture {
+            if bracken > 0.6 { SHRUB } else { PASTURE }
+        } else if slope > 40.0 && scars > 0.55 {
+            BARREN
+        } else if z > 2300.0 + 100.0 * noise {
+            UPPER_FOREST
+        } else {
+            LOWER_FOREST
         }
-    }
+    });
     // The plan: a woodland on the pastures of the slope and a hedgerow across the pastures
     // below it (both only on pasture: the forest is not replanted).
-    for row in 0..h {
-        for col in 0..w {
-            let (cx, cy) = planned.cell_center(col, row);
-            let (x, y) = frame.to_local(cx, cy);
-            if existing.data[row * w + col] != f64::from(PASTURE) {
-                continue;
-            }
-            let ((wx, wy), (ax, ay)) = WOODLAND;
-            let woodland = ((x - wx) / ax).powi(2) + ((y - wy) / ay).powi(2) < 1.0;
-            let (a, b) = (Vec2::from(HEDGE.0), Vec2::from(HEDGE.1));
-            let hedge = distance_to_segment(Vec2::new(x as f32, y as f32), a, b) <= 0.5 * HEDGE_WIDTH;
-            planned.data[row * w + col] = f64::from(if woodland {
-                PLANNED_WOODLAND
-            } else if hedge {
-                PLANNED_HEDGEROW
-            } else {
-                0
-            });
+    fill(&mut planned, frame, |x, y, index| {
+        if existing.data[index] != f64::from(PASTURE) {
+            return 0;
         }
-    }
+        let ((wx, wy), (ax, ay)) = WOODLAND;
+        let woodland = ((x - wx) / ax).powi(2) + ((y - wy) / ay).powi(2) < 1.0;
+        let (a, b) = (Vec2::from(HEDGE.0), Vec2::from(HEDGE.1));
+        let hedge = distance_to_segment(Vec2::new(x as f32, y as f32), a, b) <= 0.5 * HEDGE_WIDTH;
+        if woodland {
+            PLANNED_WOODLAND
+        } else if hedge {
+            PLANNED_HEDGEROW
+        } else {
+            0
+        }
+    });
     // Palettes: the NLCD legend colours of these classes, and the plan in warm colours.
     let mut existing_palette = vec![[0u8, 0, 0]; 256];
     for (code, rgb) in [
