@@ -1,5 +1,6 @@
-//! `landsketch bench` (SPEC O3): renders scenes of 100 … 100,000 plants generated from the
-//! sample scene's placement rules along a short walk at eye height, in several styles, and
+//! `landsketch bench` (SPEC O3): renders scenes of 100 … 1,000,000 plants generated from the
+//! sample scene's placement rules along a short walk at eye height or a bird's-eye flight, in
+//! several styles, and
 //! reports per-pass times (median/min/max over the frames), triangles submitted, the share of
 //! the source geometry drawn (the seeds' "% lod", thesis Table 8.1), preprocessing time, peak
 //! RSS and an estimate of GPU memory. No figure here is asserted anywhere; it is measured.
@@ -35,9 +36,27 @@ pub struct BenchOptions {
     pub frames: usize,
     pub width: u32,
     pub height: u32,
-    /// Metres the camera walks forward per frame.
+    /// Metres the camera moves forward per frame.
     pub step: f32,
+    /// The camera's path.
+    pub path: BenchPath,
 }
+
+/// The camera path of a benchmark.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum BenchPath {
+    /// From the scene's default camera forward at its eye height above the terrain.
+    Walk,
+    /// From [`BIRDS_EYE_HEIGHT`] above the default camera's ground, looking 35° down, flying
+    /// forward along its heading at a constant height.
+    BirdsEye,
+}
+
+/// Height of the bird's-eye path above the ground under the default camera (metres).
+pub const BIRDS_EYE_HEIGHT: f32 = 300.0;
+/// Pitch of the bird's-eye path (degrees).
+const BIRDS_EYE_PITCH: f32 = -35.0;
 
 /// Median, minimum and maximum of a series, in milliseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -110,18 +129,26 @@ pub struct BenchReport {
     pub width: u32,
     pub height: u32,
     pub frames: usize,
+    /// The camera path.
+    pub path: BenchPath,
     /// A plain full-screen copy pass at the same size: the floor of any post pass.
     pub copy_pass_ms: Stat,
     pub scenes: Vec<SceneRun>,
 }
 
-/// The sample scene with every rule's density scaled so that about `target` plants are placed.
+/// The sample scene with every rule's density scaled so that about `target` plants are placed
+/// (and, above the scene's own densities, its minimum spacing by the square root of the factor).
 pub fn scaled_scene(path: &Path, target: usize) -> Result<Scene, BenchError> {
     let base = SceneConfig::load(path)?;
     let build = |factor: f64| -> Result<Scene, BenchError> {
         let mut config = base.clone();
         for rule in config.layers.iter_mut().flat_map(|l| l.rules.iter_mut()) {
             rule.density = (rule.density * factor).min(10_000.0);
+            // Denser than the scene's rules: the spacing shrinks with the density, else the
+            // minimum spacing caps the count (forest rules sit near their packing limit).
+            if factor > 1.0 {
+                rule.min_spacing /= factor.sqrt();
+            }
         }
         Ok(Scene::from_config_file(&config, path, &crate::progress::Silent)?)
     };
@@ -148,24 +175,26 @@ pub fn scaled_scene(path: &Path, target: usize) -> Result<Scene, BenchError> {
     Ok(scene)
 }
 
-/// The walk: from the default camera forward along its heading, eye height kept above the
-/// terrain.
-fn walk(scene: &Scene, frames: usize, step: f32) -> Vec<Camera> {
+/// The cameras of `path`: from the default camera forward along its heading, on the walk with
+/// its eye height kept above the terrain, on the bird's-eye path at a constant height.
+fn cameras(scene: &Scene, frames: usize, step: f32, path: BenchPath) -> Vec<Camera> {
     let start = scene.default_camera;
-    let eye = scene.terrain.height_at(f64::from(start.position[0]), f64::from(start.position[1]));
-    let eye_height = eye.map_or(1.7, |ground| start.position[2] - ground as f32);
+    let ground_at = |x: f32, y: f32| scene.terrain.height_at(f64::from(x), f64::from(y)).map(|g| g as f32);
+    let start_ground = ground_at(start.position[0], start.position[1]);
+    let eye_height = start_ground.map_or(1.7, |ground| start.position[2] - ground);
+    let flight_z = start_ground.map_or(start.position[2], |g| g + BIRDS_EYE_HEIGHT);
     let heading = start.yaw.to_radians();
     (0..frames)
         .map(|i| {
-            let (x, y) = (
-                start.position[0] + heading.sin() * step * i as f32,
-                start.position[1] + heading.cos() * step * i as f32,
-            );
-            let z = scene
-                .terrain
-                .height_at(f64::from(x), f64::from(y))
-                .map_or(start.position[2], |g| g as f32 + eye_height);
-            Camera { position: [x, y, z], ..start }
+            let d = step * i as f32;
+            let (x, y) = (start.position[0] + heading.sin() * d, start.position[1] + heading.cos() * d);
+            match path {
+                BenchPath::Walk => {
+                    let z = ground_at(x, y).map_or(start.position[2], |g| g + eye_height);
+                    Camera { position: [x, y, z], ..start }
+                }
+                BenchPath::BirdsEye => Camera { position: [x, y, flight_z], pitch: BIRDS_EYE_PITCH, ..start },
+            }
         })
         .collect()
 }
@@ -285,7 +314,7 @@ pub fn run(
     for &plants in plant_counts {
         progress(&format!("generating the {plants}-plant scene"));
         let scene = scaled_scene(scene_path, plants)?;
-        let cameras = walk(&scene, options.frames.max(1), options.step);
+        let cameras = cameras(&scene, options.frames.max(1), options.step, options.path);
         let cache = render_options.cache.as_ref();
         let before = cache.map(|c| c.stats()).unwrap_or_default();
         let started = Instant::now();
@@ -325,6 +354,7 @@ pub fn run(
         width: options.width,
         height: options.height,
         frames: options.frames,
+        path: options.path,
         copy_pass_ms,
         scenes,
     })
@@ -339,6 +369,25 @@ mod tests {
         assert_eq!(Stat::of(&[3.0, 1.0, 2.0]), Stat { median: 2.0, min: 1.0, max: 3.0 });
         assert_eq!(Stat::of(&[4.0, 1.0, 2.0, 3.0]).median, 2.5);
         assert_eq!(Stat::of(&[]), Stat::default());
+    }
+
+    #[test]
+    fn the_paths_walk_at_eye_height_and_fly_at_a_constant_height() {
+        let scene = scaled_scene(Path::new("data/boulder/scene.toml"), 100).unwrap();
+        let start = scene.default_camera;
+        let ground = |c: &Camera| scene.terrain.height_at(f64::from(c.position[0]), f64::from(c.position[1]));
+        let start_ground = ground(&start).unwrap() as f32;
+        let walk = cameras(&scene, 4, 10.0, BenchPath::Walk);
+        let flight = cameras(&scene, 4, 10.0, BenchPath::BirdsEye);
+        for (i, (w, f)) in walk.iter().zip(&flight).enumerate() {
+            // Both move 10 m a frame along the default heading.
+            let moved = glam::Vec2::new(w.position[0] - start.position[0], w.position[1] - start.position[1]).length();
+            assert!((moved - 10.0 * i as f32).abs() < 1e-3, "frame {i}: {moved}");
+            assert_eq!((w.position[0], w.position[1]), (f.position[0], f.position[1]));
+            let eye = w.position[2] - ground(w).unwrap() as f32;
+            assert!((eye - (start.position[2] - start_ground)).abs() < 1e-3 && w.pitch == start.pitch);
+            assert!((f.position[2] - (start_ground + BIRDS_EYE_HEIGHT)).abs() < 1e-3 && f.pitch == BIRDS_EYE_PITCH);
+        }
     }
 
     #[test]

@@ -190,7 +190,10 @@ struct BenchArgs {
     /// Frame height in pixels.
     #[arg(long, default_value_t = 768)]
     height: u32,
-    /// Metres the camera walks per frame.
+    /// The camera's path: `walk` (eye height) or `birds-eye` (300 m up, 35° down).
+    #[arg(long, value_enum, default_value = "walk")]
+    path: landsketch::bench::BenchPath,
+    /// Metres the camera moves per frame.
     #[arg(long, default_value_t = 0.5)]
     step: f32,
     /// Print the report as JSON.
@@ -775,7 +778,8 @@ fn bench(args: &BenchArgs) -> Result<()> {
         .iter()
         .map(|name| Ok((name.clone(), landsketch::render::presets::preset(name)?)))
         .collect::<Result<Vec<_>>>()?;
-    let options = BenchOptions { frames: args.frames, width: args.width, height: args.height, step: args.step };
+    let options =
+        BenchOptions { frames: args.frames, width: args.width, height: args.height, step: args.step, path: args.path };
     let render_options = args.cache.render_options()?;
     let gpu = Arc::new(Gpu::new()?);
     let data = data_view(&args.data)?;
@@ -786,7 +790,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         return Ok(());
     }
     println!(
-        "{} ({}), {} x{} cores; {}x{}, {} frames; copy pass {:.1} ms",
+        "{} ({}), {} x{} cores; {}x{}, {} frames, path {:?}; copy pass {:.1} ms",
         report.adapter,
         report.backend,
         report.cpu,
@@ -794,6 +798,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         report.width,
         report.height,
         report.frames,
+        report.path,
         report.copy_pass_ms.median
     );
     for scene in &report.scenes {
