@@ -142,7 +142,8 @@ struct CacheArgs {
     #[arg(long)]
     no_cache: bool,
     /// Level-of-detail thresholds in projected plant height (pixels), a JSON object of any of
-    /// `full_px`, `hlp_px`, `min_px`, `mass_px`, `grid_px`, `fade`, e.g. `{"mass_px": 16}`.
+    /// `full_px`, `hlp_px`, `min_px`, `mass_px`, `grid_px`, `fade`, `hlp_budget`, e.g.
+    /// `{"mass_px": 16}`.
     #[arg(long, value_name = "JSON")]
     lod: Option<String>,
 }
@@ -554,13 +555,10 @@ fn viewpoint_camera(path: &Path, name: &str, scene: &Scene, styles: &mut ViewSty
             if names.is_empty() { "none".to_owned() } else { names.join(", ") }
         );
     };
-    styles.preset = styles.preset.take().or_else(|| viewpoint.preset.clone());
-    let mut style = viewpoint.style.clone().unwrap_or_default();
-    style.merge(&styles.style);
-    styles.style = style;
-    for (layer, own) in viewpoint.layer_styles.iter().flatten() {
-        styles.layer_styles.entry(layer.clone()).or_insert_with(|| own.clone());
-    }
+    // The viewpoint's styles as the server shows them, the flags' over them.
+    let mut merged = landsketch::api::viewpoints::view_params(viewpoint, None, None).view_style();
+    merged.merge(styles);
+    *styles = merged;
     let resolved = viewpoint.camera.resolve(&scene.default_camera, scene, Source::Body);
     Ok(resolved.with_context(|| format!("viewpoint {name:?} of {}", path.display()))?.camera)
 }

@@ -110,18 +110,23 @@ impl LodSettings {
         }
     }
 
-    /// These settings for a frame whose plants are `sizes` pixels tall (reordered): when more
-    /// than `hlp_budget` of them reach the HLP band, its threshold rises so that only the
-    /// largest `hlp_budget` do (the full-model threshold with it where it would fall below).
-    pub fn within_budget(&self, sizes: &mut [f32]) -> LodSettings {
+    /// These settings for a frame whose plants are `sizes` pixels tall: when more than
+    /// `hlp_budget` of them reach the HLP band, its threshold rises so that only the largest
+    /// `hlp_budget` do (the full-model threshold with it where it would fall below).
+    pub fn within_budget(&self, sizes: &[f32]) -> LodSettings {
         let budget = self.hlp_budget as usize;
         let lower_edge = self.hlp_px * (1.0 - self.fade);
-        if budget == 0 || self.force.is_some() || sizes.iter().filter(|&&px| px > lower_edge).count() <= budget {
+        if budget == 0 || self.force.is_some() {
+            return *self;
+        }
+        // Only the plants in the band are ordered (a few thousand of a forest's plants).
+        let mut in_band: Vec<f32> = sizes.iter().copied().filter(|&px| px > lower_edge).collect();
+        if in_band.len() <= budget {
             return *self;
         }
         // The largest plant beyond the budget: the band's lower edge moves to it, so only the
         // larger ones reach the band.
-        let (_, &mut first_out, _) = sizes.select_nth_unstable_by(budget, |a, b| b.total_cmp(a));
+        let (_, &mut first_out, _) = in_band.select_nth_unstable_by(budget, |a, b| b.total_cmp(a));
         let hlp_px = first_out / (1.0 - self.fade);
         LodSettings { hlp_px, full_px: self.full_px.max(hlp_px), ..*self }
     }
@@ -383,14 +388,14 @@ mod tests {
         };
         // Within the budget nothing changes.
         let few = [300.0, 100.0, 50.0, 10.0];
-        assert_eq!(s.within_budget(&mut few.clone()), s);
+        assert_eq!(s.within_budget(&few), s);
         // Ten plants in the HLP band: only the three largest keep more than a billboard, and the
         // full-model threshold stays above the HLP one.
         let many: Vec<f32> = (0..10).map(|i| 200.0 - 15.0 * i as f32).chain([5.0, 2.0]).collect();
-        let framed = s.within_budget(&mut many.clone());
+        let framed = s.within_budget(&many);
         assert_eq!(hlp(&framed, &many), 3, "{framed:?}");
         assert!(framed.full_px >= framed.hlp_px && framed.validate().is_ok());
-        assert_eq!(hlp(&LodSettings { hlp_budget: 0, ..s }.within_budget(&mut many.clone()), &many), 10);
+        assert_eq!(hlp(&LodSettings { hlp_budget: 0, ..s }.within_budget(&many), &many), 10);
     }
 
     #[test]

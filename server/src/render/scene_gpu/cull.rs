@@ -119,7 +119,7 @@ impl SceneGpu {
         let mut references = References::default();
         // The plants in view with their projected size; the frame's HLP budget applies to
         // them all before any level is chosen.
-        let mut in_view = Vec::new();
+        let (mut in_view, mut sizes) = (Vec::new(), Vec::new());
         for (index, plant) in self.plants.iter().enumerate() {
             let s = &self.species[plant.species];
             let i = &plant.instance;
@@ -140,10 +140,11 @@ impl SceneGpu {
                     s.height * i.offset_scale[3] * px_per_metre / depth
                 }
             };
-            in_view.push((index, px, drawn_as));
+            in_view.push((index, drawn_as));
+            sizes.push(px);
         }
-        let lod = &lod.within_budget(&mut in_view.iter().map(|&(_, px, _)| px).collect::<Vec<_>>());
-        for (index, px, drawn_as) in in_view {
+        let lod = &lod.within_budget(&sizes);
+        for ((index, drawn_as), px) in in_view.into_iter().zip(sizes) {
             let plant = &self.plants[index];
             let s = &self.species[plant.species];
             let i = &plant.instance;
