@@ -1005,12 +1005,12 @@ async function main() {
   let scene;
   let openapi;
   try {
-    // While the server loads its scene, say how far it has come.
+    // While the server loads its scene, say how far it has come where the picture will be.
     await waitUntilReady((health) => {
       const stage = t(`stage.${health.stage ?? 'starting'}`);
-      say(t('msg.loading', { stage, percent: Math.round(health.percent ?? 0) }), 'info');
+      $('placeholder').textContent = t('msg.loading', { stage, percent: Math.round(health.percent ?? 0) });
     });
-    say('', 'info');
+    $('placeholder').textContent = t('view.waiting');
     [scene, openapi] = await Promise.all([getJSON('/api/scene'), getJSON('/api/openapi.json')]);
   } catch (error) {
     say(t('msg.notReady', { reason: error.message }));
