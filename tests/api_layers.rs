@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::server::{TestServer, client, get, json_of, loaded};
+use common::server::{TestServer, client, get, json_of, loaded, scene_tiff, sized_scene_tiff};
 use common::tiff::{DATA_OFFSET, Entry, LONG, SHORT, geographic_entries, longs, shorts, tiff_file};
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::ws::{FrameHeader, HEADER_LEN};
@@ -39,36 +39,6 @@ async fn assert_error(response: reqwest::Response, status: u16, code: &str, para
     let message = error["message"].as_str().unwrap_or_default().to_string();
     assert!(!message.is_empty(), "{url}: {body}");
     message
-}
-
-/// A Float32 GeoTIFF (EPSG:4326) of 8 × 6 cells exactly covering the sample scene's DEM, with
-/// values `offset + column`.
-fn scene_tiff(offset: f64) -> Vec<u8> {
-    sized_scene_tiff(8, 6, offset)
-}
-
-/// [`scene_tiff`] with `width` × `height` cells.
-fn sized_scene_tiff(width: usize, height: usize, offset: f64) -> Vec<u8> {
-    let dem = &loaded().0.terrain.dem;
-    let e = dem.extent();
-    let raster = Raster {
-        width,
-        height,
-        data: (0..width * height).map(|i| offset + (i % width) as f64).collect(),
-        nodata: None,
-        transform: GeoTransform {
-            origin_x: e.min_x,
-            origin_y: e.max_y,
-            cell_width: (e.max_x - e.min_x) / width as f64,
-            cell_height: (e.max_y - e.min_y) / height as f64,
-        },
-        crs: Crs::Geographic { epsg: Some(4326) },
-        palette: None,
-    };
-    let dir = tempfile::tempdir().expect("temp dir");
-    let path = dir.path().join("ramp.tif");
-    write_geotiff_f32(&path, &raster).expect("write GeoTIFF");
-    std::fs::read(&path).expect("read GeoTIFF")
 }
 
 fn fixture(name: &str) -> Vec<u8> {

@@ -3,6 +3,7 @@
 
 use clap::Parser;
 use landsketch::api::{Server, ServerConfig};
+use landsketch::gis::{Crs, GeoTransform, Raster, write_geotiff_f32};
 use landsketch::render::Gpu;
 use landsketch::scene::Scene;
 use serde_json::Value;
@@ -181,4 +182,34 @@ pub async fn raw_exchange(server: &TestServer, request: &[u8], wait: Duration) -
         }
     }
     (String::from_utf8_lossy(&received).into_owned(), started.elapsed())
+}
+
+/// A Float32 GeoTIFF (EPSG:4326) of 8 × 6 cells exactly covering the sample scene's DEM, with
+/// values `offset + column`.
+pub fn scene_tiff(offset: f64) -> Vec<u8> {
+    sized_scene_tiff(8, 6, offset)
+}
+
+/// [`scene_tiff`] with `width` × `height` cells.
+pub fn sized_scene_tiff(width: usize, height: usize, offset: f64) -> Vec<u8> {
+    let dem = &loaded().0.terrain.dem;
+    let e = dem.extent();
+    let raster = Raster {
+        width,
+        height,
+        data: (0..width * height).map(|i| offset + (i % width) as f64).collect(),
+        nodata: None,
+        transform: GeoTransform {
+            origin_x: e.min_x,
+            origin_y: e.max_y,
+            cell_width: (e.max_x - e.min_x) / width as f64,
+            cell_height: (e.max_y - e.min_y) / height as f64,
+        },
+        crs: Crs::Geographic { epsg: Some(4326) },
+        palette: None,
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("ramp.tif");
+    write_geotiff_f32(&path, &raster).expect("write GeoTIFF");
+    std::fs::read(&path).expect("read GeoTIFF")
 }

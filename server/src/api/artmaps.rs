@@ -14,12 +14,14 @@ use super::auth::Admin;
 use super::error::{ApiError, ErrorBody};
 use super::events::LiveEvent;
 use super::pool::{ArtChange, PoolError, RenderPool};
+use super::replicas::shared_error;
 use super::routes::pool_error;
 use super::view::hex;
 use super::{AppState, Ready};
 use crate::render::RenderError;
 use crate::render::art_textures::{ArtKind, ArtMap, ArtMapSet};
 use crate::render::artmaps::{ArtMapError, Sam, Tam};
+use crate::store::shared::SharedArtMap;
 use crate::store::{Store, StoreError};
 use axum::Json;
 use axum::body::Bytes;
@@ -259,13 +261,54 @@ impl ArtMaps {
     }
 }
 
-/// Tone levels of the renderer's TAMs (what an uploaded strip is cut into).
+/// Gives the renderer the uploaded art maps as another replica stored them (`shared`, from
+/// the shared database): maps whose PNG is not the one in use are decoded and set (in index
+/// order, so that added maps come at the count), uploaded maps the database lacks go back to
+/// their generated default or are removed (last first).
+pub async fn adopt(ready: &Ready, shared: &[SharedArtMap]) {
+    let art = &ready.art;
+    let _write = art.writes.lock().await;
+    let uploaded = art.lock().uploaded.clone();
+    for map in shared {
+        let digest: [u8; 32] = Sha256::digest(&map.png).into();
+        if uploaded.get(&(map.kind, map.index)) == Some(&digest) {
+            continue;
+        }
+        let (kind, index, png) = (map.kind, map.index, map.png.clone());
+        let levels = tam_levels(&art.lock().current);
+        let decoded =
+            tokio::task::spawn_blocking(move || decode(kind, &png, levels, &format!("{}/{index}", kind.name())))
+                .await
+                .map_err(|e| e.to_string())
+                .and_then(|d| d.map_err(|e| e.to_string()));
+        let applied = match decoded {
+            Ok(decoded) => apply(ready, ArtChange::Set { index, map: decoded }).await.map_err(|e| e.to_string()),
+            Err(error) => Err(error),
+        };
+        match applied {
+            Ok(maps) => art.commit(ready, maps, Committed { kind, index, upload: Some(digest) }),
+            Err(error) => warn!(kind = kind.name(), index, %error, "cannot use an art map another replica stored"),
+        }
+    }
+    for &(kind, index) in uploaded.keys().rev().filter(|k| !shared.iter().any(|m| (m.kind, m.index) == **k)) {
+        let change = match art.defaults.get(kind, index) {
+            Some(default) => ArtChange::Set { index, map: default },
+            None => ArtChange::Remove { kind, index },
+        };
+        match apply(ready, change).await {
+            Ok(maps) => art.commit(ready, maps, Committed { kind, index, upload: None }),
+            Err(error) => warn!(kind = kind.name(), index, %error, "cannot restore an art map another replica removed"),
+        }
+    }
+}
+
 /// Tells every WebSocket session how many art maps there are now.
 fn publish_counts(state: &AppState, art: &ArtMaps) {
     let (tams, sams) = art.counts();
     state.publish(LiveEvent::ArtMaps { tams, sams });
 }
 
+/// Tone levels of the renderer's TAMs (what an uploaded strip is cut into).
 fn tam_levels(maps: &ArtMapSet) -> usize {
     maps.tams.first().map_or(1, |t| t.levels.len())
 }
@@ -311,14 +354,27 @@ async fn blocking(work: impl FnOnce() -> Result<(), StoreError> + Send + 'static
         .map_err(|e| ApiError::Storage(e.to_string()))
 }
 
-/// Writes to the data directory after the worker applied `change`; when that fails, the
-/// worker undoes the change with `undo` and the write fails.
+/// Stores the PNG of art map `index` of `kind` (`None`: removes it) after the worker applied
+/// the change: in the data directory and, with replicas, in the shared database. When that
+/// fails, the worker undoes the change with `undo` and the write fails.
 async fn persist(
+    state: &AppState,
     ready: &Ready,
     undo: ArtChange,
-    work: impl FnOnce() -> Result<(), StoreError> + Send + 'static,
+    (kind, index): (ArtKind, usize),
+    png: Option<Bytes>,
 ) -> Result<(), ApiError> {
-    let written = blocking(work).await;
+    let (store, local) = (state.store().clone(), png.clone());
+    let mut written = blocking(move || match local {
+        Some(png) => store.save_art_map(kind, index, &png),
+        None => store.delete_art_map(kind, index),
+    })
+    .await;
+    if written.is_ok()
+        && let Some(replication) = state.replication()
+    {
+        written = replication.shared().put_art_map(kind, index, png.as_deref()).await.map_err(shared_error);
+    }
     if written.is_err()
         && let Err(error) = apply(ready, undo).await
     {
@@ -432,9 +488,8 @@ pub async fn put(
     .map_err(|e| ApiError::Internal(e.to_string()))?
     .map_err(|e| ApiError::invalid("body", e.to_string()))?;
     let maps = apply(ready, ArtChange::Set { index, map }).await?;
-    let store = state.store().clone();
     let digest: [u8; 32] = Sha256::digest(&body).into();
-    persist(ready, undo(kind, index, previous.clone()), move || store.save_art_map(kind, index, &body)).await?;
+    persist(&state, ready, undo(kind, index, previous.clone()), (kind, index), Some(body)).await?;
     art.commit(ready, maps, Committed { kind, index, upload: Some(digest) });
     publish_counts(&state, art);
     let info = art.list();
@@ -491,8 +546,7 @@ pub async fn delete(
         }
     };
     let maps = apply(ready, change).await?;
-    let store = state.store().clone();
-    persist(ready, ArtChange::Set { index, map: previous }, move || store.delete_art_map(kind, index)).await?;
+    persist(&state, ready, ArtChange::Set { index, map: previous }, (kind, index), None).await?;
     art.commit(ready, maps, Committed { kind, index, upload: None });
     publish_counts(&state, art);
     Ok(StatusCode::NO_CONTENT)

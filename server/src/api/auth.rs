@@ -182,7 +182,7 @@ mod tests {
         let store = crate::store::Store::open(dir.path()).expect("store");
         let participation =
             crate::store::participation::SqlStore::open_in(dir.path()).await.expect("participation store");
-        let state = AppState::new(config, std::sync::Arc::new(store), std::sync::Arc::new(participation));
+        let state = AppState::new(config, std::sync::Arc::new(store), std::sync::Arc::new(participation), None);
         let mut request = axum::http::Request::builder().uri("/api/cache/clear").header(header::HOST, "127.0.0.1:8080");
         if let Some(value) = authorization {
             request = request.header(header::AUTHORIZATION, value);

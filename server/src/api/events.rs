@@ -1,6 +1,7 @@
-//! Live updates (issue #14): a `tokio::sync::broadcast` of typed [`LiveEvent`]s in the app
-//! state. Whatever changes comments, layers, viewpoints or art maps sends one
-//! ([`super::AppState::publish`]); every WebSocket session forwards it to its client as a
+//! Live updates (issue #14): whatever changes comments, layers, viewpoints or art maps
+//! publishes a typed [`LiveEvent`] ([`super::AppState::publish`]); what the public is to know
+//! of it goes on a `tokio::sync::broadcast` in the app state (and to the other replicas,
+//! [`super::replicas`]), and every WebSocket session forwards it to its client as a
 //! [`Changed`] message (`{"type": "changed", "what": "comments" | "layers" | "viewpoints" |
 //! "artmaps", …}`), so no page needs a reload.
 //!
@@ -10,7 +11,7 @@
 
 use super::comments::CommentJson;
 use crate::store::participation::{Comment, CommentStatus};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use tokio::sync::broadcast;
 use utoipa::ToSchema;
 
@@ -18,7 +19,7 @@ use utoipa::ToSchema;
 pub const CAPACITY: usize = 256;
 
 /// What happened to the thing an event is about.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Change {
     /// It is new.
@@ -139,10 +140,11 @@ pub fn reload_all() -> [Changed; 3] {
     ]
 }
 
-/// The channel: one sender in the app state, one receiver per session.
+/// The channel of public messages ([`LiveEvent::public`]): one sender in the app state, one
+/// receiver per session.
 #[derive(Debug, Clone)]
 pub struct Events {
-    sender: broadcast::Sender<LiveEvent>,
+    sender: broadcast::Sender<Changed>,
 }
 
 impl Default for Events {
@@ -152,13 +154,13 @@ impl Default for Events {
 }
 
 impl Events {
-    /// Sends `event` to every session listening now (none listening is fine).
-    pub fn send(&self, event: LiveEvent) {
-        let _ = self.sender.send(event);
+    /// Sends `changed` to every session listening now (none listening is fine).
+    pub fn send(&self, changed: Changed) {
+        let _ = self.sender.send(changed);
     }
 
-    /// A receiver of the events sent from now on.
-    pub fn subscribe(&self) -> broadcast::Receiver<LiveEvent> {
+    /// A receiver of the messages sent from now on.
+    pub fn subscribe(&self) -> broadcast::Receiver<Changed> {
         self.sender.subscribe()
     }
 }

@@ -228,14 +228,18 @@ pub async fn upload(
     let (bytes, req) = read_upload(&state, query.as_deref().unwrap_or_default(), request).await?;
     let store = state.store().clone();
     let permit = state.decode_permit().await?;
-    let (meta, appended) = blocking(move || {
+    let (meta, before) = blocking(move || {
         let _permit = permit;
-        let existing = store.find_by_name(&req.name).map(|m| m.id);
+        let existing = store.find_by_name(&req.name);
         let meta = store.add_upload(&bytes, &req, &geo)?;
-        let appended = existing.as_deref() == Some(meta.id.as_str());
-        Ok((meta, appended))
+        let before = existing.filter(|e| e.id == meta.id);
+        Ok((meta, before))
     })
     .await?;
+    if let Some(replication) = state.replication() {
+        replication.push_layer(state.store(), &meta.id, before.as_ref()).await?;
+    }
+    let appended = before.is_some();
     tracing::info!(layer = %meta.id, steps = meta.steps.len(), appended, "layer uploaded");
     let change = if appended { Change::Changed } else { Change::Added };
     state.publish(LiveEvent::Layer { change, id: meta.id.clone() });
@@ -280,6 +284,9 @@ pub async fn delete(
 ) -> Result<StatusCode, ApiError> {
     let store = state.store().clone();
     let meta = blocking(move || store.delete(&id)).await?;
+    if let Some(replication) = state.replication() {
+        replication.push_layer(state.store(), &meta.id, Some(&meta)).await?;
+    }
     tracing::info!(layer = %meta.id, "layer deleted");
     state.publish(LiveEvent::Layer { change: Change::Removed, id: meta.id });
     Ok(StatusCode::NO_CONTENT)

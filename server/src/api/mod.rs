@@ -18,6 +18,7 @@ pub mod metrics;
 pub mod openapi;
 pub mod pool;
 pub mod ratelimit;
+pub mod replicas;
 pub mod routes;
 pub mod view;
 pub mod viewpoints;
@@ -75,6 +76,9 @@ pub enum ServerError {
     /// cannot be opened or migrated.
     #[error(transparent)]
     Participation(#[from] ParticipationError),
+    /// The layer and art-map store shared with other replicas cannot be opened or synced.
+    #[error(transparent)]
+    Shared(#[from] crate::store::shared::SharedError),
     /// `--admin-token-file` or `--meeting-password-file` is unreadable or empty.
     #[error(transparent)]
     TokenFile(#[from] config::TokenFileError),
@@ -128,6 +132,8 @@ struct Inner {
     decodes: Arc<tokio::sync::Semaphore>,
     /// Open meetings (presenter mode).
     meetings: meetings::Meetings,
+    /// The database shared with other replicas (a PostgreSQL `--database-url`).
+    replication: Option<replicas::Replication>,
 }
 
 /// State shared by every handler; cheap to clone.
@@ -135,7 +141,12 @@ struct Inner {
 pub struct AppState(Arc<Inner>);
 
 impl AppState {
-    fn new(config: ServerConfig, store: Arc<Store>, participation: Arc<dyn ParticipationStore>) -> AppState {
+    fn new(
+        config: ServerConfig,
+        store: Arc<Store>,
+        participation: Arc<dyn ParticipationStore>,
+        replication: Option<replicas::Replication>,
+    ) -> AppState {
         let decodes = Arc::new(tokio::sync::Semaphore::new(config.upload_decodes));
         let metrics = Metrics::new();
         AppState(Arc::new(Inner {
@@ -150,6 +161,7 @@ impl AppState {
             ready: OnceLock::new(),
             loading: Arc::default(),
             shutdown: watch::Sender::new(false),
+            replication,
         }))
     }
 
@@ -185,7 +197,16 @@ impl AppState {
 
     /// Tells every WebSocket session about a change (see [`events`]).
     pub fn publish(&self, event: events::LiveEvent) {
-        self.0.events.send(event);
+        let Some(changed) = event.public() else { return };
+        if let Some(replication) = &self.0.replication {
+            replication.announce(&changed);
+        }
+        self.0.events.send(changed);
+    }
+
+    /// The database shared with other replicas, with a PostgreSQL `--database-url`.
+    pub fn replication(&self) -> Option<&replicas::Replication> {
+        self.0.replication.as_ref()
     }
 
     /// The loaded scene and renderer; `None` while loading.
@@ -357,12 +378,14 @@ impl Server {
             Some(url) => SqlStore::open(url).await?,
             None => SqlStore::open_in(&config.data_dir).await?,
         };
+        let store = Arc::new(store);
+        let replication = replicas::Replication::open(config.database_url.as_deref(), &store).await?;
         if !config.web_dir.join("index.html").is_file() {
             tracing::warn!(dir = %config.web_dir.display(), "no index.html in the web directory: the browser UI is off");
         }
         let listener =
             TcpListener::bind(config.addr).await.map_err(|source| ServerError::Bind { addr: config.addr, source })?;
-        Ok(Server { listener, state: AppState::new(config, Arc::new(store), Arc::new(participation)) })
+        Ok(Server { listener, state: AppState::new(config, store, Arc::new(participation), replication) })
     }
 
     /// The address the server listens on.
@@ -416,6 +439,7 @@ impl Server {
             state.config().send_buffer(),
             state.shutdown_receiver(),
         ));
+        tokio::spawn(replicas::listen(state.clone()));
         let loaded = load(state.clone(), loaded).await;
         if loaded.is_err() {
             state.begin_shutdown();

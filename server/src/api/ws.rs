@@ -16,7 +16,7 @@ pub use tour::{TourAction, TourControl, TourEvent, TourViewpoint};
 use super::auth::Admin;
 use super::connections::stopped;
 use super::error::{ApiError, ErrorDetail};
-use super::events::{Changed, LiveEvent};
+use super::events::Changed;
 use super::meetings::{Mailbox, Presenter};
 use super::metrics::Metrics;
 use super::pool::{Frame, FrameKind, FrameReceiver, PoolError, SessionLane};
@@ -504,7 +504,7 @@ enum Event {
     Meeting(meeting::MeetingEvent),
     Present(Presenter),
     ArtMaps,
-    Live(Result<LiveEvent, u64>),
+    Live(Result<Changed, u64>),
     Wake,
     Idle,
     Shutdown,
@@ -674,8 +674,8 @@ impl<'a> Session<'a> {
                     Some(ServerMessage::ArtMaps { tams, sams })
                 }
                 Event::Live(Ok(event)) => {
-                    self.view.pins_stale |= self.view.comments.is_some() && matches!(event, LiveEvent::Comment { .. });
-                    event.public().map(ServerMessage::Changed)
+                    self.view.pins_stale |= self.view.comments.is_some() && matches!(event, Changed::Comments { .. });
+                    Some(ServerMessage::Changed(event))
                 }
                 Event::Live(Err(missed)) => {
                     tracing::debug!(session = self.id, missed, "session fell behind the live events");
@@ -1053,7 +1053,7 @@ async fn frame_done(in_flight: &mut Option<InFlight>) -> Result<Frame, PoolError
 
 /// The next live event; `Err(n)` when the session fell `n` events behind. The sender lives in
 /// the app state, so the channel never closes while a session runs.
-async fn next_live(live: &mut tokio::sync::broadcast::Receiver<LiveEvent>) -> Result<LiveEvent, u64> {
+async fn next_live(live: &mut tokio::sync::broadcast::Receiver<Changed>) -> Result<Changed, u64> {
     use tokio::sync::broadcast::error::RecvError;
     match live.recv().await {
         Ok(event) => Ok(event),

@@ -29,11 +29,13 @@
 //! characters) and never reach a path. Ids given to [`Store::get`] and friends are looked up
 //! in the in-memory index only.
 //!
-//! Uploaded art maps are kept in `artmaps/` (see [`Store::save_art_map`]).
+//! Uploaded art maps are kept in `artmaps/` (see [`Store::save_art_map`]). With several
+//! replicas the directory is a local copy of the database's layers and art maps ([`shared`]).
 
 mod artmaps;
 pub mod participation;
 pub mod request;
+pub mod shared;
 
 pub use artmaps::StoredArtMap;
 
@@ -456,6 +458,54 @@ impl Store {
             warn!(path = %grave.display(), error = %e, "could not remove a deleted layer; it goes at the next start");
         }
         Ok(meta)
+    }
+
+    /// The file of step `file` of layer `id` (as [`StepMeta::file`] names it).
+    pub fn step_path(&self, id: &str, file: &str) -> PathBuf {
+        self.layers_dir().join(id).join(file)
+    }
+
+    /// A new empty directory in the staging area for a copy of layer `id` to
+    /// [`install`](Store::install).
+    pub fn staging_dir(&self, id: &str) -> Result<PathBuf, StoreError> {
+        let stage = self.tmp_dir().join(format!("copy-{id}-{}", nonce()));
+        fs::create_dir(&stage).map_err(io_err(&stage))?;
+        Ok(stage)
+    }
+
+    /// Installs a copy of a layer made elsewhere (another replica's, [`shared`]): `stage` (from
+    /// [`Store::staging_dir`]) holds the step files `meta` lists. It is checked like a layer at
+    /// start-up, then replaces the stored layer of that id atomically (the limits on the
+    /// number of layers do not apply: the copy is stored already). Returns the replaced
+    /// version.
+    pub fn install(&self, meta: LayerMeta, stage: &Path) -> Result<Option<LayerMeta>, StoreError> {
+        let _writing = self.writing();
+        if !valid_id(&meta.id) {
+            return Err(StoreError::Corrupt { id: echo(&meta.id).to_string(), message: "not a layer id".into() });
+        }
+        self.write_file_atomic(&stage.join("meta.json"), &meta_json(&meta)?)?;
+        let meta = self.load_layer_dir(&meta.id.clone(), stage)?;
+        sync_dir(stage)?;
+        let target = self.layers_dir().join(&meta.id);
+        let grave = self.tmp_dir().join(format!("replaced-{}-{}", meta.id, nonce()));
+        let previous = self.lock().get(&meta.id).cloned();
+        if target.exists() {
+            fs::rename(&target, &grave).map_err(io_err(&target))?;
+        }
+        fs::rename(stage, &target).map_err(io_err(&target))?;
+        sync_dir(&self.layers_dir())?;
+        self.lock().insert(meta.id.clone(), meta);
+        if grave.exists()
+            && let Err(e) = fs::remove_dir_all(&grave)
+        {
+            warn!(path = %grave.display(), error = %e, "could not remove a replaced layer; it goes at the next start");
+        }
+        Ok(previous)
+    }
+
+    /// Writes `shared.json`, the marker of the database this directory mirrors ([`shared`]).
+    pub fn write_marker(&self, text: &str) -> Result<(), StoreError> {
+        self.write_file_atomic(&self.root.join("shared.json"), text.as_bytes())
     }
 
     /// Reads a layer's data as a [`Field`] (every time step, in the layer's CRS).

@@ -9,6 +9,7 @@
 
 mod sql;
 
+pub(crate) use sql::redacted;
 pub use sql::{SqlStore, sqlite_url};
 
 use serde::{Deserialize, Serialize};

@@ -42,7 +42,7 @@ pub fn sqlite_url(path: &Path) -> String {
 }
 
 /// A URL for messages: the scheme and host, never a password.
-fn redacted(url: &str) -> String {
+pub(crate) fn redacted(url: &str) -> String {
     match url.split_once("://") {
         Some((scheme, rest)) => {
             let host = rest.rsplit_once('@').map_or(rest, |(_, host)| host);
@@ -421,6 +421,11 @@ impl ParticipationStore for SqlStore {
     }
 }
 
+/// The test harness's PostgreSQL, shared with the integration tests.
+#[cfg(test)]
+#[path = "../../../../tests/common/postgres.rs"]
+mod temp_postgres;
+
 #[cfg(test)]
 mod tests {
     use super::super::author_hash;
@@ -514,101 +519,13 @@ mod tests {
         assert_eq!(mode, "wal");
     }
 
-    /// A throw-away PostgreSQL server (Debian's `postgresql` package, installed by
-    /// `scripts/setup`) on a Unix socket in a temporary directory, stopped when dropped.
-    struct TempPostgres {
-        dir: tempfile::TempDir,
-        server: std::process::Child,
-    }
-
-    impl TempPostgres {
-        /// The directory of the server binaries: Debian keeps them in
-        /// `/usr/lib/postgresql/<major>/bin` (the newest is taken); `/usr/local/bin` first.
-        fn bin() -> Option<std::path::PathBuf> {
-            let debian = std::fs::read_dir("/usr/lib/postgresql").into_iter().flatten().flatten().map(|e| e.path());
-            let mut majors: Vec<_> = debian.filter(|p| p.join("bin/initdb").exists()).collect();
-            majors.sort_by_key(|p| p.file_name().and_then(|n| n.to_str()?.parse::<u32>().ok()));
-            let local = Path::new("/usr/local/bin");
-            if local.join("initdb").exists() {
-                return Some(local.to_path_buf());
-            }
-            majors.pop().map(|p| p.join("bin"))
-        }
-
-        /// Runs `program` of the PostgreSQL binaries as the `postgres` user when this is root
-        /// (PostgreSQL refuses to run as root).
-        fn command(bin: &Path, program: &str) -> std::process::Command {
-            let path = bin.join(program).to_string_lossy().into_owned();
-            let root = std::process::Command::new("id").arg("-u").output().is_ok_and(|o| o.stdout == b"0\n");
-            if root {
-                let mut command = std::process::Command::new("setpriv");
-                command.args(["--reuid=postgres", "--regid=postgres", "--init-groups", "--", &path]);
-                command
-            } else {
-                std::process::Command::new(path)
-            }
-        }
-
-        /// `None` when PostgreSQL is not installed.
-        fn start() -> Option<TempPostgres> {
-            let bin = Self::bin()?;
-            let dir = tempfile::tempdir().expect("temporary directory");
-            if let Ok(user) = std::process::Command::new("id").args(["-u", "postgres"]).output()
-                && let Ok(uid) = String::from_utf8_lossy(&user.stdout).trim().parse::<u32>()
-            {
-                std::os::unix::fs::chown(dir.path(), Some(uid), None).expect("hand the directory to postgres");
-            }
-            let data = dir.path().join("data");
-            let initdb = Self::command(&bin, "initdb")
-                .args(["-A", "trust", "-U", "landsketch", "-D"])
-                .arg(&data)
-                .stdout(std::process::Stdio::null())
-                .status()
-                .expect("initdb");
-            assert!(initdb.success(), "initdb failed");
-            let server = Self::command(&bin, "postgres")
-                .arg("-D")
-                .arg(&data)
-                .arg("-k")
-                .arg(dir.path())
-                .args(["-c", "listen_addresses="])
-                .stderr(std::process::Stdio::null())
-                .spawn()
-                .expect("postgres");
-            Some(TempPostgres { dir, server })
-        }
-
-        fn url(&self) -> String {
-            format!("postgres://landsketch@localhost/postgres?host={}", self.dir.path().display())
-        }
-    }
-
-    impl Drop for TempPostgres {
-        fn drop(&mut self) {
-            // SIGINT: PostgreSQL's fast shutdown (the server runs as another user, so signal it
-            // with kill(1) rather than Child::kill's SIGKILL).
-            let _ = std::process::Command::new("kill").args(["-INT", &self.server.id().to_string()]).status();
-            let _ = self.server.wait();
-        }
-    }
-
     #[tokio::test]
     async fn postgres_store_runs_the_same_migrations_and_queries() {
-        let Some(postgres) = TempPostgres::start() else {
+        let Some(postgres) = super::temp_postgres::TempPostgres::start() else {
             eprintln!("PostgreSQL is not installed (scripts/setup installs it); skipped");
             return;
         };
-        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
-        let store = loop {
-            match SqlStore::open(&postgres.url()).await {
-                Ok(store) => break store,
-                Err(e) if std::time::Instant::now() < deadline => {
-                    tracing::debug!(%e, "PostgreSQL is not up yet");
-                    tokio::time::sleep(std::time::Duration::from_millis(100)).await;
-                }
-                Err(e) => panic!("{e}"),
-            }
-        };
+        let store = SqlStore::open(&postgres.url()).await.expect("open");
         exercise(&store).await;
         store.close().await;
     }

@@ -1,0 +1,249 @@
+//! Several replicas on one PostgreSQL database (issue #16). Comments, viewpoints and
+//! meetings live in the database already ([`crate::store::participation`]); layers and art
+//! maps are copied there ([`SharedStore`]). What changes on one replica reaches the others as
+//! a `NOTIFY` on the channel [`CHANNEL`](crate::store::shared::CHANNEL): each replica
+//! announces the public [`Changed`] messages it sends its own WebSocket sessions
+//! ([`AppState::publish`]), and a listener on every other replica copies the layer or art
+//! maps named, then tells its sessions the same — within the database's round trip.
+//!
+//! A listener that lost its connection catches up when it is back: it syncs every layer and
+//! the art maps and tells its sessions to reload.
+
+use super::AppState;
+use super::artmaps;
+use super::comments::CommentJson;
+use super::error::ApiError;
+use super::events::{self, Change, Changed};
+use super::layers::store_error;
+use crate::store::participation::CommentStatus;
+use crate::store::shared::{Pulled, SharedError, SharedStore};
+use crate::store::{LayerMeta, Store};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::mpsc;
+use tracing::{debug, info, warn};
+
+/// A change announced to the other replicas: the public [`Changed`] message without the
+/// comment itself (a `NOTIFY` payload is at most 8,000 bytes; the comment is read from the
+/// shared database).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "what", rename_all = "snake_case")]
+enum Notice {
+    Comments { change: Change, id: i64 },
+    Layers { change: Change, id: String },
+    Viewpoints { change: Change, name: String },
+    Artmaps,
+}
+
+impl Notice {
+    /// The notice of a message sessions are sent; `None` for the `reload` of a session that
+    /// fell behind (that concerns one session only).
+    fn of(changed: &Changed) -> Option<Notice> {
+        Some(match changed {
+            Changed::Comments { change, id, .. } => Notice::Comments { change: *change, id: (*id)? },
+            Changed::Layers { change, id } => Notice::Layers { change: *change, id: id.clone()? },
+            Changed::Viewpoints { change, name } => Notice::Viewpoints { change: *change, name: name.clone()? },
+            Changed::Artmaps { .. } => Notice::Artmaps,
+        })
+    }
+}
+
+/// A notice with the replica that sent it (a replica hears its own notices too).
+#[derive(Debug, Serialize, Deserialize)]
+struct Envelope {
+    from: String,
+    #[serde(flatten)]
+    notice: Notice,
+}
+
+/// This replica's part: the shared store and the queue of notices to send, in order.
+pub struct Replication {
+    shared: SharedStore,
+    replica: String,
+    outbox: mpsc::UnboundedSender<String>,
+}
+
+impl Replication {
+    /// Opens the shared store when `url` is a PostgreSQL URL (`None` for SQLite: one server)
+    /// and brings the local store `store` in line with it.
+    pub async fn open(url: Option<&str>, store: &Arc<Store>) -> Result<Option<Replication>, SharedError> {
+        let Some(url) = url.filter(|u| u.starts_with("postgres://") || u.starts_with("postgresql://")) else {
+            return Ok(None);
+        };
+        let shared = SharedStore::open(url).await?;
+        let changed = shared.sync(store).await?;
+        let mut random = [0u8; 8];
+        getrandom::fill(&mut random).map_err(|e| SharedError::Task(e.to_string()))?;
+        let replica = super::view::hex(&random);
+        info!(%replica, layers = store.list().len(), synced = changed.len(), "sharing layers and art maps with the other replicas");
+        let (outbox, mut queue) = mpsc::unbounded_channel::<String>();
+        let sender = shared.clone();
+        tokio::spawn(async move {
+            while let Some(payload) = queue.recv().await {
+                if let Err(error) = sender.notify(&payload).await {
+                    warn!(%error, "cannot tell the other replicas of a change");
+                }
+            }
+        });
+        Ok(Some(Replication { shared, replica, outbox }))
+    }
+
+    /// The shared store.
+    pub fn shared(&self) -> &SharedStore {
+        &self.shared
+    }
+
+    /// Queues the notice of `changed` for the other replicas.
+    pub fn announce(&self, changed: &Changed) {
+        let Some(notice) = Notice::of(changed) else { return };
+        match serde_json::to_string(&Envelope { from: self.replica.clone(), notice }) {
+            Ok(payload) => {
+                let _ = self.outbox.send(payload);
+            }
+            Err(error) => warn!(%error, "cannot encode a replica notice"),
+        }
+    }
+
+    /// Writes the local store's layer `id` to the shared store (`before`: the version the
+    /// local write started from). When that fails the local copy is made the shared one again,
+    /// so the replicas agree, and the error is returned.
+    pub async fn push_layer(&self, store: &Arc<Store>, id: &str, before: Option<&LayerMeta>) -> Result<(), ApiError> {
+        let Err(error) = self.shared.push_layer(store, id, before).await else { return Ok(()) };
+        if let Err(restore) = self.shared.pull_layer(store, id).await {
+            warn!(layer = id, error = %restore, "cannot restore a layer's local copy from the shared database");
+        }
+        Err(shared_error(error))
+    }
+}
+
+/// The API error of a shared-store failure.
+pub fn shared_error(error: SharedError) -> ApiError {
+    match error {
+        SharedError::Local(e) => store_error(e),
+        SharedError::Conflict(_) => ApiError::Conflict(error.to_string()),
+        SharedError::Database { .. } => ApiError::Busy { message: error.to_string(), retry_after: 5 },
+        SharedError::Corrupt { .. } | SharedError::Task(_) => ApiError::Storage(error.to_string()),
+    }
+}
+
+/// Listens for the other replicas' notices until the server shuts down, applying each to
+/// this replica (see the module documentation).
+pub async fn listen(state: AppState) {
+    let Some(replication) = state.replication() else { return };
+    let mut stopping = state.shutdown_receiver();
+    let mut listener = loop {
+        match replication.shared.listen().await {
+            Ok(listener) => break listener,
+            Err(error) => {
+                warn!(%error, "cannot listen for the other replicas; retrying");
+                tokio::select! {
+                    () = tokio::time::sleep(Duration::from_secs(1)) => {}
+                    _ = stopping.wait_for(|s| *s) => return,
+                }
+            }
+        }
+    };
+    loop {
+        let received = tokio::select! {
+            received = listener.try_recv() => received,
+            _ = stopping.wait_for(|s| *s) => return,
+        };
+        match received {
+            Ok(Some(notification)) => match serde_json::from_str::<Envelope>(notification.payload()) {
+                Ok(envelope) if envelope.from == replication.replica => {}
+                Ok(envelope) => apply(&state, replication, envelope.notice).await,
+                Err(error) => warn!(%error, payload = notification.payload(), "ignoring an unreadable replica notice"),
+            },
+            // The connection was lost (and is back): notices may be missing.
+            Ok(None) => catch_up(&state, replication).await,
+            Err(error) => {
+                warn!(%error, "lost the other replicas' notices; retrying");
+                tokio::time::sleep(Duration::from_secs(1)).await;
+            }
+        }
+    }
+}
+
+/// Applies another replica's notice here and tells this replica's sessions.
+async fn apply(state: &AppState, replication: &Replication, notice: Notice) {
+    debug!(?notice, "replica notice");
+    let changed = match notice {
+        Notice::Comments { change: Change::Removed, id } => {
+            Changed::Comments { change: Change::Removed, id: Some(id), comment: None }
+        }
+        Notice::Comments { change, id } => match state.participation().comment(id).await {
+            Ok(Some(comment)) if comment.status == CommentStatus::Visible => {
+                Changed::Comments { change, id: Some(id), comment: Some(Box::new(CommentJson::public(&comment))) }
+            }
+            // Changed again since (another notice follows) or gone.
+            Ok(_) => return,
+            Err(error) => return warn!(%error, comment = id, "cannot read a comment another replica changed"),
+        },
+        Notice::Layers { change, id } => match replication.shared.pull_layer(state.store(), &id).await {
+            Ok(Pulled::Unchanged) => return,
+            Ok(_) => Changed::Layers { change, id: Some(id) },
+            Err(error) => return warn!(%error, layer = %id, "cannot copy a layer another replica changed"),
+        },
+        Notice::Viewpoints { change, name } => Changed::Viewpoints { change, name: Some(name) },
+        Notice::Artmaps => match adopt_art_maps(state, replication).await {
+            Some(changed) => changed,
+            None => return,
+        },
+    };
+    state.events().send(changed);
+}
+
+/// Copies the shared art maps and gives them to the renderer (once the scene is loaded);
+/// the `artmaps` message for the sessions.
+async fn adopt_art_maps(state: &AppState, replication: &Replication) -> Option<Changed> {
+    let shared = match replication.shared.art_maps().await {
+        Ok(shared) => shared,
+        Err(error) => {
+            warn!(%error, "cannot read the art maps another replica changed");
+            return None;
+        }
+    };
+    if let Err(error) = replication.shared.pull_art_maps(state.store(), &shared).await {
+        warn!(%error, "cannot copy the art maps another replica changed");
+    }
+    let ready = state.ready()?;
+    artmaps::adopt(ready, &shared).await;
+    let (tams, sams) = ready.art.counts();
+    Some(Changed::Artmaps { tams, sams })
+}
+
+/// After a lost connection: every layer and the art maps synced, every session told to
+/// reload.
+async fn catch_up(state: &AppState, replication: &Replication) {
+    info!("reconnected to the shared database; catching up");
+    if let Err(error) = replication.shared.sync(state.store()).await {
+        warn!(%error, "cannot sync with the shared database");
+    }
+    if let Some(changed) = adopt_art_maps(state, replication).await {
+        state.events().send(changed);
+    }
+    for reload in events::reload_all() {
+        state.events().send(reload);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn notices_name_what_changed_without_the_comment() {
+        let comment = Changed::Comments { change: Change::Added, id: Some(7), comment: None };
+        let envelope = Envelope { from: "a1".into(), notice: Notice::of(&comment).expect("notice") };
+        let text = serde_json::to_string(&envelope).expect("json");
+        assert_eq!(text, r#"{"from":"a1","what":"comments","change":"added","id":7}"#);
+        let back: Envelope = serde_json::from_str(&text).expect("parse");
+        assert_eq!(back.notice, Notice::Comments { change: Change::Added, id: 7 });
+        let art: Envelope = serde_json::from_str(r#"{"from":"b","what":"artmaps"}"#).expect("art");
+        assert_eq!(art.notice, Notice::Artmaps);
+        for reload in events::reload_all() {
+            assert_eq!(Notice::of(&reload), None, "a session's reload stays on its replica");
+        }
+    }
+}
