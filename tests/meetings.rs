@@ -4,7 +4,7 @@
 mod common;
 
 use common::server::{TestServer, client, get, json_of};
-use common::ws::{Incoming, Socket, connect, connect_with_receive_buffer, next_frame, receive, send};
+use common::ws::{Incoming, Socket, connect, connect_with_receive_buffer, next_frame, receive, send, until};
 use landsketch::api::ws::FrameHeader;
 use serde_json::{Value, json};
 use std::collections::HashMap;
@@ -29,20 +29,6 @@ async fn metric(server: &TestServer, name: &str) -> f64 {
         .filter(|l| l.starts_with(name) && (l.len() == name.len() || l[name.len()..].starts_with([' ', '{'])))
         .filter_map(|l| l.rsplit(' ').next()?.parse::<f64>().ok())
         .sum()
-}
-
-/// Reads until a JSON message of `kind`; returns it and the other JSON messages before it
-/// (binary frames are skipped).
-async fn until(socket: &mut Socket, kind: &str) -> (Value, Vec<Value>) {
-    let mut others = Vec::new();
-    loop {
-        match receive(socket).await {
-            Incoming::Json(v) if v["type"] == kind => return (v, others),
-            Incoming::Json(v) => others.push(v),
-            Incoming::Frame(..) => {}
-            Incoming::Closed(reason) => panic!("closed waiting for {kind}: {reason:?}"),
-        }
-    }
 }
 
 /// A presenter: connects, takes its first frame and opens a meeting; returns the socket and

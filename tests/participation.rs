@@ -8,6 +8,7 @@
 mod common;
 
 use common::server::{TestServer, client, get, json_of};
+use common::ws::{Socket, next_changed};
 use futures_util::StreamExt;
 use landsketch::gis::{Crs, CrsDefinition, GeoTransform, Raster, Transformer, write_geotiff_f32};
 use landsketch::scene::Scene;
@@ -273,26 +274,9 @@ async fn comments_export_as_geojson_and_csv_that_parse_back() {
     assert_eq!(bad.status(), 422);
 }
 
-type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
-
 async fn session(server: &TestServer) -> Socket {
     let (socket, _) = tokio_tungstenite::connect_async(server.ws_url("width=64&height=48")).await.expect("connect");
     socket
-}
-
-/// The next `changed` message of a session (frames and other messages are skipped); `None`
-/// when none comes within `wait`.
-async fn next_changed(socket: &mut Socket, wait: Duration) -> Option<Value> {
-    let deadline = tokio::time::Instant::now() + wait;
-    loop {
-        let message = tokio::time::timeout_at(deadline, socket.next()).await.ok()??.expect("message");
-        if let Message::Text(text) = message {
-            let value: Value = serde_json::from_str(&text).expect("JSON");
-            if value["type"] == "changed" {
-                return Some(value);
-            }
-        }
-    }
 }
 
 #[tokio::test]

@@ -3,7 +3,7 @@
 //! a temporary directory). A layer uploaded on one renders on the other, a comment made on one
 //! reaches a WebSocket session on the other within a second, art maps follow, and a replica
 //! killed (SIGKILL) in the middle of uploads leaves the database and the other replica's view
-//! of it consistent.
+//! of it consistent. A meeting presented on one is followed on the other.
 
 mod common;
 
@@ -11,15 +11,12 @@ mod common;
 mod postgres;
 
 use common::server::{TestServer, client, get, json_of, scene_tiff, sized_scene_tiff};
-use futures_util::StreamExt;
+use common::ws::{connect, next_changed, next_frame, send, until};
 use postgres::TempPostgres;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
 use std::time::{Duration, Instant};
-use tokio_tungstenite::tungstenite::Message;
-
-type Socket = tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
 /// How long a change on one replica may take to reach the other.
 const PROPAGATION: Duration = Duration::from_secs(1);
@@ -35,20 +32,6 @@ fn database() -> Option<TempPostgres> {
 fn replica(dir: &std::path::Path, url: &str) -> TestServer {
     let url = url.to_owned();
     TestServer::start(dir, move |c| c.database_url = Some(url))
-}
-
-/// The next `changed` message of a session within `wait` (frames and others skipped).
-async fn next_changed(socket: &mut Socket, wait: Duration) -> Option<Value> {
-    let deadline = tokio::time::Instant::now() + wait;
-    loop {
-        let message = tokio::time::timeout_at(deadline, socket.next()).await.ok()??.expect("message");
-        if let Message::Text(text) = message {
-            let value: Value = serde_json::from_str(&text).expect("JSON");
-            if value["type"] == "changed" {
-                return Some(value);
-            }
-        }
-    }
 }
 
 /// Polls `GET url` until `done` holds for its JSON body, at most `wait`; the last body.
@@ -157,6 +140,56 @@ async fn two_replicas_share_layers_comments_viewpoints_and_art_maps() {
     let c = replica(dir_c.path(), &postgres.url());
     assert_eq!(json_of(get(&c.url("/api/comments")).await).await["comments"].as_array().map(Vec::len), Some(1));
     assert_eq!(ids(&json_of(get(&c.url("/api/layers")).await).await), Vec::<String>::new());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_meeting_presented_on_one_replica_is_followed_on_another() {
+    let Some(postgres) = database() else { return };
+    let (dir_a, dir_b) = (tempfile::tempdir().expect("temp dir"), tempfile::tempdir().expect("temp dir"));
+    let a = replica(dir_a.path(), &postgres.url());
+    let b = replica(dir_b.path(), &postgres.url());
+    let view = "width=64&height=48";
+    let mut presenter = connect(&a, view).await;
+    next_frame(&mut presenter).await;
+    send(&mut presenter, json!({"type": "open_meeting", "caption": "Hedge row"})).await;
+    let (meeting, _) = until(&mut presenter, "meeting").await;
+    let code = meeting["code"].as_str().expect("code").to_owned();
+    let (_, _, opening, opening_image) = next_frame(&mut presenter).await;
+
+    // B does not present the meeting; it relays it and renders the presenter's view itself.
+    let info = json_of(get(&b.url(&format!("/api/meetings/{code}"))).await).await;
+    assert_eq!(info["code"], code.as_str(), "{info}");
+    let mut follower = connect(&b, &format!("{view}&meeting={code}")).await;
+    let (joined, _) = until(&mut follower, "meeting").await;
+    assert_eq!((joined["role"].as_str(), joined["code"].as_str()), (Some("follower"), Some(code.as_str())));
+    let (_, _, header, image) = next_frame(&mut follower).await;
+    assert_eq!(header.frame_id, opening.frame_id, "the follower starts with the presenter's newest frame");
+    assert_eq!(image, opening_image, "B renders the presenter's view to the same image");
+
+    // The presenter moves: the follower on B gets the same frames.
+    send(&mut presenter, json!({"type": "move", "yaw": 20, "forward": 5})).await;
+    let last = loop {
+        let (_, _, header, image) = next_frame(&mut presenter).await;
+        if header.still {
+            break (header.frame_id, image);
+        }
+    };
+    let relayed = loop {
+        let (_, _, header, image) = next_frame(&mut follower).await;
+        if header.frame_id >= last.0 {
+            break (header.frame_id, image);
+        }
+    };
+    assert_eq!(relayed, last, "the presenter's still at rest, rendered on B");
+
+    // The caption and the end of the meeting reach the follower.
+    send(&mut presenter, json!({"type": "caption", "text": "The new wood"})).await;
+    let (status, _) = until(&mut follower, "meeting").await;
+    assert_eq!(status["caption"], "The new wood");
+    send(&mut presenter, json!({"type": "close_meeting"})).await;
+    let (ended, _) = until(&mut follower, "meeting_ended").await;
+    assert!(ended["reason"].as_str().is_some_and(|r| r.contains("ended")), "{ended}");
+    assert_eq!(get(&b.url(&format!("/api/meetings/{code}"))).await.status(), 404);
 }
 
 /// A TAM strip of the renderer's shape (6 tone levels of 256²), every pixel ink.

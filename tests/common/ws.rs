@@ -75,3 +75,32 @@ pub async fn next_frame(socket: &mut Socket) -> (Vec<Value>, Value, FrameHeader,
 pub async fn send(socket: &mut Socket, message: Value) {
     socket.send(Message::text(message.to_string())).await.expect("send");
 }
+
+/// Reads until a JSON message of `kind`; returns it and the other JSON messages before it
+/// (binary frames are skipped).
+pub async fn until(socket: &mut Socket, kind: &str) -> (Value, Vec<Value>) {
+    let mut others = Vec::new();
+    loop {
+        match receive(socket).await {
+            Incoming::Json(v) if v["type"] == kind => return (v, others),
+            Incoming::Json(v) => others.push(v),
+            Incoming::Frame(..) => {}
+            Incoming::Closed(reason) => panic!("closed waiting for {kind}: {reason:?}"),
+        }
+    }
+}
+
+/// The next `changed` message of a session (frames and other messages are skipped); `None`
+/// when none comes within `wait`.
+pub async fn next_changed(socket: &mut Socket, wait: Duration) -> Option<Value> {
+    let deadline = tokio::time::Instant::now() + wait;
+    loop {
+        let message = tokio::time::timeout_at(deadline, socket.next()).await.ok()??.expect("message");
+        if let Message::Text(text) = message {
+            let value: Value = serde_json::from_str(&text).expect("JSON");
+            if value["type"] == "changed" {
+                return Some(value);
+            }
+        }
+    }
+}

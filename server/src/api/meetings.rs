@@ -39,6 +39,10 @@ pub const CODE_LEN: usize = 6;
 /// Longest meeting caption, in characters.
 pub const MAX_CAPTION: usize = 500;
 
+/// The presenter "session" of a meeting presented on another replica and relayed here
+/// (session numbers start at 1).
+pub const RELAYED: u64 = 0;
+
 /// A new random join code from the operating system's generator.
 pub fn new_code() -> Result<String, ApiError> {
     let mut code = String::with_capacity(CODE_LEN);
@@ -175,6 +179,12 @@ impl Meeting {
         self.status.subscribe()
     }
 
+    /// The presenter's frames, as they come (for relaying them to another replica; not a
+    /// follower).
+    pub fn watch_frames(&self) -> watch::Receiver<Option<Arc<SharedFrame>>> {
+        self.frames.subscribe()
+    }
+
     /// Adds a follower; it gets the newest frame at once, then every frame it can take.
     pub fn follow(self: &Arc<Self>) -> Follower {
         let mut frames = self.frames.subscribe();
@@ -309,16 +319,7 @@ impl Meetings {
                 break code;
             }
         };
-        let status = MeetingStatus { caption, followers: 0, ended: None };
-        let meeting = Arc::new(Meeting {
-            code: code.clone(),
-            presenter,
-            frames: watch::Sender::new(None),
-            status: watch::Sender::new(status),
-            renders: AtomicU64::new(0),
-            metrics: self.metrics.clone(),
-            recorded: Mutex::new(None),
-        });
+        let meeting = self.meeting(&code, presenter, caption);
         let (store, record) = (
             self.store.clone(),
             participation::Meeting {
@@ -337,12 +338,41 @@ impl Meetings {
             }
         });
         *meeting.recorded.lock().unwrap_or_else(PoisonError::into_inner) = recording;
-        open.insert(code.clone(), meeting.clone());
+        tracing::info!(meeting = %code, session = presenter, "meeting opened");
+        Ok(self.insert(&mut open, meeting))
+    }
+
+    /// Opens here the meeting `code` that a session of another replica presents (see
+    /// [`super::replicas`]); its frames are the relay's. `None` when it is open here already.
+    pub fn open_relay(&self, code: &str, caption: Option<String>) -> Option<Presenter> {
+        let mut open = self.lock_open();
+        if open.contains_key(code) {
+            return None;
+        }
+        tracing::info!(meeting = %code, "relaying a meeting presented on another replica");
+        Some(self.insert(&mut open, self.meeting(code, RELAYED, caption)))
+    }
+
+    /// A new meeting (not yet open).
+    fn meeting(&self, code: &str, presenter: u64, caption: Option<String>) -> Arc<Meeting> {
+        Arc::new(Meeting {
+            code: code.to_owned(),
+            presenter,
+            frames: watch::Sender::new(None),
+            status: watch::Sender::new(MeetingStatus { caption, followers: 0, ended: None }),
+            renders: AtomicU64::new(0),
+            metrics: self.metrics.clone(),
+            recorded: Mutex::new(None),
+        })
+    }
+
+    /// Adds `meeting` to the open ones (`open`, locked) and counts it.
+    fn insert(&self, open: &mut HashMap<String, Arc<Meeting>>, meeting: Arc<Meeting>) -> Presenter {
+        open.insert(meeting.code.clone(), meeting.clone());
         self.metrics.meetings.set(i64::try_from(open.len()).unwrap_or(i64::MAX));
         self.metrics.meeting_followers.get_or_create(&meeting.labels()).set(0);
         self.metrics.meeting_renders.get_or_create(&meeting.labels()).inc_by(0);
-        tracing::info!(meeting = %code, session = presenter, "meeting opened");
-        Ok(Presenter { meeting, registry: self.clone() })
+        Presenter { meeting, registry: self.clone() }
     }
 
     /// The open meeting with join code `given` (typed by a user: case and a dash do not
@@ -495,7 +525,7 @@ pub async fn open(
         (status = 200, description = "The meeting", body = MeetingInfo),
         (status = 404, description = "No open meeting has this code", body = ErrorBody)))]
 pub async fn get(State(state): State<AppState>, Path(code): Path<String>) -> Result<Json<MeetingInfo>, ApiError> {
-    Ok(Json(state.meetings().find(&code)?.info()))
+    Ok(Json(super::replicas::find_meeting(&state, &code).await?.info()))
 }
 
 /// The absolute join link of a meeting as the client addressed the server (`Host`, and
@@ -528,7 +558,7 @@ pub async fn qr(
     Path(code): Path<String>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let meeting = state.meetings().find(&code)?;
+    let meeting = super::replicas::find_meeting(&state, &code).await?;
     let svg = qr_svg(&join_link(&headers, &meeting.code))?;
     Ok(([(header::CONTENT_TYPE, "image/svg+xml"), (header::CACHE_CONTROL, "no-store")], svg).into_response())
 }

@@ -15,13 +15,27 @@ use super::comments::CommentJson;
 use super::error::ApiError;
 use super::events::{self, Change, Changed};
 use super::layers::store_error;
+use super::meetings::{Meeting, Presenter, RELAYED, SharedFrame, normalize_code};
+use super::pool::FrameKind;
+use super::view::ViewParams;
+use crate::scene::camera_params::Source;
 use crate::store::participation::CommentStatus;
 use crate::store::shared::{Pulled, SharedError, SharedStore};
 use crate::store::{LayerMeta, Store};
 use serde::{Deserialize, Serialize};
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
-use tokio::sync::mpsc;
+use tokio::sync::{Notify, mpsc};
+
+/// The largest `NOTIFY` payload PostgreSQL takes is 8,000 bytes.
+const MAX_PAYLOAD: usize = 7_900;
+/// Notices a relay may have waiting (frames beyond are dropped: a newer one follows).
+const RELAY_QUEUE: usize = 64;
+/// How long a new relay waits for the presenter's replica to send a frame.
+const RELAY_ANSWER: Duration = Duration::from_secs(10);
+/// How often an idle relay looks whether it still has followers.
+const RELAY_IDLE: Duration = Duration::from_secs(30);
 use tracing::{debug, info, warn};
 
 /// A change announced to the other replicas: the public [`Changed`] message without the
@@ -30,10 +44,42 @@ use tracing::{debug, info, warn};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "what", rename_all = "snake_case")]
 enum Notice {
-    Comments { change: Change, id: i64 },
-    Layers { change: Change, id: String },
-    Viewpoints { change: Change, name: String },
+    Comments {
+        change: Change,
+        id: i64,
+    },
+    Layers {
+        change: Change,
+        id: String,
+    },
+    Viewpoints {
+        change: Change,
+        name: String,
+    },
     Artmaps,
+    /// A replica relays meeting `code`: its presenter's replica is to send its frames.
+    MeetingWanted {
+        code: String,
+    },
+    /// The presenter of meeting `code` got frame `frame_id` of `view`.
+    MeetingFrame {
+        code: String,
+        frame_id: u32,
+        view: Box<ViewParams>,
+        eye_height: Option<f32>,
+    },
+    /// Meeting `code` has this caption, or ended.
+    MeetingStatus {
+        code: String,
+        caption: Option<String>,
+        ended: bool,
+    },
+}
+
+/// What a relay hears of its meeting.
+enum RelayNotice {
+    Frame { frame_id: u32, view: Box<ViewParams>, eye_height: Option<f32> },
+    Status { caption: Option<String>, ended: bool },
 }
 
 impl Notice {
@@ -57,11 +103,17 @@ struct Envelope {
     notice: Notice,
 }
 
-/// This replica's part: the shared store and the queue of notices to send, in order.
+/// This replica's part: the shared store, the queue of notices to send, in order, and the
+/// meetings relayed from or to other replicas.
 pub struct Replication {
     shared: SharedStore,
     replica: String,
     outbox: mpsc::UnboundedSender<String>,
+    /// Meetings presented elsewhere and relayed here: where their notices go.
+    relays: Mutex<HashMap<String, mpsc::Sender<RelayNotice>>>,
+    /// Meetings presented here whose frames go to other replicas: how to ask for the newest
+    /// frame again.
+    forwards: Mutex<HashMap<String, Arc<Notify>>>,
 }
 
 impl Replication {
@@ -86,7 +138,7 @@ impl Replication {
                 }
             }
         });
-        Ok(Some(Replication { shared, replica, outbox }))
+        Ok(Some(Replication { shared, replica, outbox, relays: Mutex::default(), forwards: Mutex::default() }))
     }
 
     /// The shared store.
@@ -96,11 +148,19 @@ impl Replication {
 
     /// Queues the notice of `changed` for the other replicas.
     pub fn announce(&self, changed: &Changed) {
-        let Some(notice) = Notice::of(changed) else { return };
+        if let Some(notice) = Notice::of(changed) {
+            self.send(notice);
+        }
+    }
+
+    /// Queues `notice` for the other replicas (one too large for a `NOTIFY` is dropped with a
+    /// warning).
+    fn send(&self, notice: Notice) {
         match serde_json::to_string(&Envelope { from: self.replica.clone(), notice }) {
-            Ok(payload) => {
+            Ok(payload) if payload.len() <= MAX_PAYLOAD => {
                 let _ = self.outbox.send(payload);
             }
+            Ok(payload) => warn!(bytes = payload.len(), "a replica notice is too large for NOTIFY; dropped"),
             Err(error) => warn!(%error, "cannot encode a replica notice"),
         }
     }
@@ -190,6 +250,13 @@ async fn apply(state: &AppState, replication: &Replication, notice: Notice) {
             Some(changed) => changed,
             None => return,
         },
+        Notice::MeetingWanted { code } => return forward(state, replication, &code),
+        Notice::MeetingFrame { code, frame_id, view, eye_height } => {
+            return to_relay(replication, &code, RelayNotice::Frame { frame_id, view, eye_height }).await;
+        }
+        Notice::MeetingStatus { code, caption, ended } => {
+            return to_relay(replication, &code, RelayNotice::Status { caption, ended }).await;
+        }
     };
     state.events().send(changed);
 }
@@ -226,6 +293,165 @@ async fn catch_up(state: &AppState, replication: &Replication) {
     for reload in events::reload_all() {
         state.events().send(reload);
     }
+}
+
+/// The open meeting with join code `given`: this replica's, or one a session of another
+/// replica presents (the shared participation store has it open), which is relayed here
+/// from then on: the presenter's replica sends each frame's view, and this replica renders
+/// it for its followers.
+pub async fn find_meeting(state: &AppState, given: &str) -> Result<Arc<Meeting>, ApiError> {
+    let local = state.meetings().find(given);
+    let (Err(_), Some(code)) = (&local, normalize_code(given)) else { return local };
+    if state.replication().is_none() || state.ready().is_none() {
+        return local;
+    }
+    let record = state.participation().meeting(&code).await.map_err(|e| ApiError::Storage(e.to_string()))?;
+    if !record.is_some_and(|m| m.closed_ms.is_none()) {
+        return local;
+    }
+    match state.meetings().open_relay(&code, None) {
+        Some(presenter) => {
+            let meeting = presenter.meeting.clone();
+            tokio::spawn(relay(state.clone(), presenter));
+            Ok(meeting)
+        }
+        // Another follower opened the relay meanwhile.
+        None => state.meetings().find(&code),
+    }
+}
+
+/// Relays a meeting presented on another replica until it ends there, its presenter's
+/// replica does not answer, or its last follower here leaves.
+async fn relay(state: AppState, presenter: Presenter) {
+    let (Some(replication), Some(ready)) = (state.replication(), state.ready()) else { return };
+    let code = presenter.meeting.code.clone();
+    let (sender, mut notices) = mpsc::channel(RELAY_QUEUE);
+    lock(&replication.relays).insert(code.clone(), sender);
+    replication.send(Notice::MeetingWanted { code: code.clone() });
+    let lane = ready.pool.session_lane();
+    let mut status = presenter.meeting.subscribe();
+    let (mut answered, mut followed) = (false, false);
+    let reason = loop {
+        let wait = if answered { RELAY_IDLE } else { RELAY_ANSWER };
+        let notice = tokio::select! {
+            notice = notices.recv() => notice,
+            () = tokio::time::sleep(wait) => {
+                if answered { continue } else { break "the presenter's server does not answer" }
+            }
+            Ok(()) = status.changed() => {
+                followed |= status.borrow_and_update().followers > 0;
+                if followed && presenter.meeting.status().followers == 0 { break "no follower left here" }
+                continue;
+            }
+        };
+        // Only the newest frame of a burst is rendered.
+        let mut newest = notice;
+        while let Ok(next) = notices.try_recv() {
+            if let Some(RelayNotice::Status { .. }) = newest {
+                apply_status(&presenter, newest.take());
+            }
+            newest = Some(next);
+        }
+        match newest {
+            Some(RelayNotice::Frame { frame_id, view, eye_height }) => {
+                answered = true;
+                match relayed_frame(&state, ready, &lane, frame_id, &view, eye_height).await {
+                    Ok(frame) => presenter.meeting.publish(frame),
+                    Err(error) => warn!(meeting = %code, %error, "cannot render a relayed meeting frame"),
+                }
+            }
+            Some(RelayNotice::Status { ended: true, .. }) => break "the presenter ended the meeting",
+            status @ Some(RelayNotice::Status { .. }) => apply_status(&presenter, status),
+            None => break "the server is shutting down",
+        }
+    };
+    lock(&replication.relays).remove(&code);
+    presenter.close(reason);
+}
+
+/// Sets the caption of a relayed meeting from a status notice.
+fn apply_status(presenter: &Presenter, notice: Option<RelayNotice>) {
+    if let Some(RelayNotice::Status { caption, .. }) = notice {
+        presenter.meeting.set_caption(caption);
+    }
+}
+
+/// Renders the view of a relayed frame here: the frame its followers get.
+async fn relayed_frame(
+    state: &AppState,
+    ready: &super::Ready,
+    lane: &super::pool::SessionLane,
+    frame_id: u32,
+    params: &ViewParams,
+    eye_height: Option<f32>,
+) -> Result<SharedFrame, ApiError> {
+    let view = params.normalize(&ready.scene, state.store(), state.limits(), Source::Body)?;
+    let view = super::comments::with_pins(state, ready, view).await?;
+    let receiver = lane.render(view.clone(), FrameKind::Still).map_err(super::routes::pool_error)?;
+    let frame = receiver.await.map_err(|_| ApiError::ShuttingDown)?.map_err(super::routes::pool_error)?;
+    let (text, binary) = super::ws::encode_frame(frame_id, 0, true, &view, &frame)
+        .ok_or_else(|| ApiError::Internal("cannot encode a frame message".into()))?;
+    Ok(SharedFrame { text, binary, frame_id, view, eye_height })
+}
+
+/// Passes a meeting notice to its relay here, if there is one.
+async fn to_relay(replication: &Replication, code: &str, notice: RelayNotice) {
+    let relay = lock(&replication.relays).get(code).cloned();
+    if let Some(relay) = relay {
+        let _ = relay.send(notice).await;
+    }
+}
+
+/// Another replica relays meeting `code`: when it is presented here, its frames and status
+/// go out from now on (the newest frame at once).
+fn forward(state: &AppState, replication: &Replication, code: &str) {
+    let Ok(meeting) = state.meetings().find(code) else { return };
+    if meeting.presenter == RELAYED {
+        return;
+    }
+    let again = {
+        let mut forwards = lock(&replication.forwards);
+        if let Some(again) = forwards.get(code) {
+            again.notify_one();
+            return;
+        }
+        let again = Arc::new(Notify::new());
+        forwards.insert(code.to_owned(), again.clone());
+        again
+    };
+    let state = state.clone();
+    tokio::spawn(async move {
+        let Some(replication) = state.replication() else { return };
+        let code = meeting.code.clone();
+        let (mut frames, mut status) = (meeting.watch_frames(), meeting.subscribe());
+        frames.mark_changed();
+        status.mark_changed();
+        loop {
+            tokio::select! {
+                Ok(()) = frames.changed() => {
+                    let frame = frames.borrow_and_update().clone();
+                    if let Some(frame) = frame {
+                        let (frame_id, eye_height) = (frame.frame_id, frame.eye_height);
+                        let view = Box::new(frame.view.to_params());
+                        replication.send(Notice::MeetingFrame { code: code.clone(), frame_id, view, eye_height });
+                    }
+                }
+                Ok(()) = status.changed() => {
+                    let now = status.borrow_and_update().clone();
+                    let ended = now.ended.is_some();
+                    replication.send(Notice::MeetingStatus { code: code.clone(), caption: now.caption, ended });
+                    if ended { break }
+                }
+                () = again.notified() => frames.mark_changed(),
+                else => break,
+            }
+        }
+        lock(&replication.forwards).remove(&code);
+    });
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 #[cfg(test)]

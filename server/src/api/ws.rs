@@ -403,7 +403,10 @@ pub async fn upgrade(
     let ws = ws.map_err(|e| ApiError::BadRequest { parameter: None, message: e.body_text() })?;
     let ready = state.ready().ok_or(ApiError::NotReady)?;
     let (code, query) = super::meetings::split_query(query.as_deref().unwrap_or_default());
-    let join = code.map(|code| state.meetings().find(&code)).transpose()?;
+    let join = match code {
+        Some(code) => Some(super::replicas::find_meeting(&state, &code).await?),
+        None => None,
+    };
     let params = ViewParams::from_query(&query)?;
     let initial = params.normalize(&ready.scene, state.store(), state.limits(), Source::Query)?;
     let walking = !matches!(params.camera.position.as_deref(), Some([_, _, _]));
@@ -778,7 +781,7 @@ impl<'a> Session<'a> {
             }
             ClientMessage::CloseMeeting => reply(self.close_meeting()),
             ClientMessage::Caption { text } => reply(self.set_meeting_caption(text)),
-            ClientMessage::Join { code } => reply(self.join(&code)),
+            ClientMessage::Join { code } => reply(self.join(&code).await),
             ClientMessage::Detach => reply(self.detach()),
             ClientMessage::Rejoin => reply(self.rejoin()),
             ClientMessage::Tour(control) => reply(self.tour_control(control, now).await),
@@ -1008,32 +1011,8 @@ impl<'a> Session<'a> {
         };
         self.frame_id += 1;
         let view = &done.view;
-        let still = done.kind == FrameKind::Still;
-        let status = ServerMessage::Frame {
-            id: self.frame_id,
-            seq: done.seq,
-            still,
-            width: view.width,
-            height: view.height,
-            format: view.format,
-            render_ms: frame.render_ms,
-            camera: CameraInfo::from(&view.camera),
-        };
-        let header = FrameHeader {
-            format: view.format,
-            frame_id: self.frame_id,
-            seq: done.seq,
-            width: u16::try_from(view.width).unwrap_or(u16::MAX),
-            height: u16::try_from(view.height).unwrap_or(u16::MAX),
-            render_ms: frame.render_ms.round().clamp(0.0, f32::from(u16::MAX)) as u16,
-            still,
-            quality: view.quality.unwrap_or(0),
-        };
-        let mut binary = Vec::with_capacity(HEADER_LEN + frame.bytes.len());
-        binary.extend_from_slice(&header.encode());
-        binary.extend_from_slice(&frame.bytes);
-        let text = Utf8Bytes::from(serde_json::to_string(&status).map_err(|_| SendFailed::Closed)?);
-        let binary = Bytes::from(binary);
+        let (text, binary) = encode_frame(self.frame_id, done.seq, done.kind == FrameKind::Still, view, &frame)
+            .ok_or(SendFailed::Closed)?;
         self.publish(&text, &binary, view);
         socket.send(Message::Text(text)).await?;
         socket.send(Message::Binary(binary)).await?;
@@ -1042,6 +1021,43 @@ impl<'a> Session<'a> {
         self.delivered = (done.art == self.ready.art.generation()).then_some(done.view);
         Ok(())
     }
+}
+
+/// The `frame` message and the binary frame (header and image) of `frame`, a render of
+/// `view`, as frame `frame_id` answering control `seq`; `None` if the message cannot be
+/// encoded.
+pub(crate) fn encode_frame(
+    frame_id: u32,
+    seq: u32,
+    still: bool,
+    view: &ViewRequest,
+    frame: &Frame,
+) -> Option<(Utf8Bytes, Bytes)> {
+    let status = ServerMessage::Frame {
+        id: frame_id,
+        seq,
+        still,
+        width: view.width,
+        height: view.height,
+        format: view.format,
+        render_ms: frame.render_ms,
+        camera: CameraInfo::from(&view.camera),
+    };
+    let header = FrameHeader {
+        format: view.format,
+        frame_id,
+        seq,
+        width: u16::try_from(view.width).unwrap_or(u16::MAX),
+        height: u16::try_from(view.height).unwrap_or(u16::MAX),
+        render_ms: frame.render_ms.round().clamp(0.0, f32::from(u16::MAX)) as u16,
+        still,
+        quality: view.quality.unwrap_or(0),
+    };
+    let mut binary = Vec::with_capacity(HEADER_LEN + frame.bytes.len());
+    binary.extend_from_slice(&header.encode());
+    binary.extend_from_slice(&frame.bytes);
+    let text = Utf8Bytes::from(serde_json::to_string(&status).ok()?);
+    Some((text, Bytes::from(binary)))
 }
 
 async fn frame_done(in_flight: &mut Option<InFlight>) -> Result<Frame, PoolError> {

@@ -159,14 +159,14 @@ impl Session<'_> {
     }
 
     /// `join`: follows the meeting with join code `code`.
-    pub(super) fn join(&mut self, code: &str) -> Result<ServerMessage, ApiError> {
+    pub(super) async fn join(&mut self, code: &str) -> Result<ServerMessage, ApiError> {
         if let Some(Role::Presenting { presenter, .. }) = &self.meeting {
             return Err(ApiError::Conflict(format!(
                 "this session presents meeting {}; send `close_meeting` first",
                 presenter.meeting.code
             )));
         }
-        let meeting = self.state.meetings().find(code)?;
+        let meeting = crate::api::replicas::find_meeting(self.state, code).await?;
         self.take_slot(true)?;
         Ok(self.follow(&meeting))
     }
