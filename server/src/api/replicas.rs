@@ -306,7 +306,7 @@ pub async fn find_meeting(state: &AppState, given: &str) -> Result<Arc<Meeting>,
         return local;
     }
     let record = state.participation().meeting(&code).await.map_err(|e| ApiError::Storage(e.to_string()))?;
-    if !record.is_some_and(|m| m.closed_ms.is_none()) {
+    if record.is_none_or(|m| m.closed_ms.is_some()) {
         return local;
     }
     match state.meetings().open_relay(&code, None) {
