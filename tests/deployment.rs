@@ -51,7 +51,7 @@ fn dockerfile_is_multi_stage_with_lavapipe_and_valid_server_flags() {
 fn kubernetes_example_is_valid_with_probes_affinity_and_known_flags() {
     let docs = YamlLoader::load_from_str(&read("deploy/kubernetes/landsketch.yaml")).expect("valid YAML");
     let kinds: BTreeSet<&str> = docs.iter().filter_map(|d| d["kind"].as_str()).collect();
-    for kind in ["Deployment", "Service", "StatefulSet", "Secret", "PersistentVolumeClaim"] {
+    for kind in ["Deployment", "Service", "StatefulSet", "Secret"] {
         assert!(kinds.contains(kind), "a {kind} in the example, found {kinds:?}");
     }
     for doc in &docs {
@@ -71,6 +71,11 @@ fn kubernetes_example_is_valid_with_probes_affinity_and_known_flags() {
     for (k, v) in selector {
         assert_eq!(&labels[k.as_str().expect("label key")], v, "the Service selects the Deployment's pods");
     }
+    // Several replicas on the shared database, each with a local copy of its data.
+    assert!(deployment["spec"]["replicas"].as_i64().is_some_and(|n| n >= 2), "several replicas");
+    let volumes = deployment["spec"]["template"]["spec"]["volumes"].as_vec().expect("volumes");
+    let data = volumes.iter().find(|v| v["name"].as_str() == Some("data")).expect("a data volume");
+    assert!(!data["emptyDir"].is_badvalue(), "the data directory is a local copy (emptyDir): {data:?}");
     let container = &deployment["spec"]["template"]["spec"]["containers"][0];
     assert_eq!(container["readinessProbe"]["httpGet"]["path"].as_str(), Some("/api/health"));
     let args: Vec<String> = container["args"]
@@ -81,6 +86,11 @@ fn kubernetes_example_is_valid_with_probes_affinity_and_known_flags() {
         .collect();
     ServerConfig::try_parse_from(std::iter::once("landsketch serve".to_string()).chain(args))
         .unwrap_or_else(|e| panic!("the container's args are not a valid `landsketch serve` command line: {e}"));
+    let env = container["env"].as_vec().expect("container env");
+    assert!(
+        env.iter().any(|v| v["name"].as_str() == Some("LANDSKETCH_DATABASE_URL")),
+        "the replicas share a PostgreSQL database"
+    );
     let known = server_env_names();
     for var in container["env"].as_vec().expect("container env") {
         let name = var["name"].as_str().expect("env name");

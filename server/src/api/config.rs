@@ -19,8 +19,9 @@ pub struct ServerConfig {
     #[arg(long, env = "LANDSKETCH_DATA_DIR", default_value = "landsketch-data")]
     pub data_dir: PathBuf,
     /// Database of the participation store (comments, likes, viewpoints, meetings):
-    /// `postgres://user:password@host/db` for several replicas, `sqlite://path`; default the
-    /// SQLite file `participation.sqlite` in the data directory.
+    /// `postgres://user:password@host/db` for several replicas (which then share layers and
+    /// art maps too), `sqlite://path`; default the SQLite file `participation.sqlite` in the
+    /// data directory.
     #[arg(long, env = "LANDSKETCH_DATABASE_URL", hide_env_values = true)]
     pub database_url: Option<String>,
     /// Directory of the preprocessing cache (HLPs, baked billboards), so a restart with the
