@@ -165,6 +165,11 @@ async fn a_meeting_presented_on_one_replica_is_followed_on_another() {
     let (_, _, header, image) = next_frame(&mut follower).await;
     assert_eq!(header.frame_id, opening.frame_id, "the follower starts with the presenter's newest frame");
     assert_eq!(image, opening_image, "B renders the presenter's view to the same image");
+    // The presenter counts the follower on B.
+    let (audience, _) = until(&mut presenter, "meeting").await;
+    assert_eq!(audience["followers"], 1, "{audience}");
+    let info = json_of(get(&a.url(&format!("/api/meetings/{code}"))).await).await;
+    assert_eq!(info["followers"], 1, "{info}");
 
     // The presenter moves: the follower on B gets the same frames.
     send(&mut presenter, json!({"type": "move", "yaw": 20, "forward": 5})).await;

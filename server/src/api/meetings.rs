@@ -141,6 +141,8 @@ pub struct Meeting {
     metrics: Metrics,
     /// Recording the meeting in the store; closing it waits for that.
     recorded: Mutex<Option<tokio::task::JoinHandle<()>>>,
+    /// Followers on other replicas (relays of this meeting), by replica.
+    remote_followers: Mutex<HashMap<String, usize>>,
 }
 
 impl Meeting {
@@ -192,6 +194,23 @@ impl Meeting {
         let followers = self.change_followers(1);
         tracing::info!(meeting = %self.code, followers, "follower joined");
         Follower { meeting: self.clone(), frames, status: self.status.subscribe() }
+    }
+
+    /// Sets how many follow on another replica (`replica` relays this meeting); they count
+    /// among the followers.
+    pub fn set_remote_followers(&self, replica: &str, followers: usize) {
+        let before = {
+            let mut remote = self.remote_followers.lock().unwrap_or_else(PoisonError::into_inner);
+            match followers {
+                0 => remote.remove(replica),
+                n => remote.insert(replica.to_owned(), n),
+            }
+            .unwrap_or(0)
+        };
+        let by = isize::try_from(followers).unwrap_or(isize::MAX) - isize::try_from(before).unwrap_or(isize::MAX);
+        if by != 0 {
+            self.change_followers(by);
+        }
     }
 
     fn change_followers(&self, by: isize) -> usize {
@@ -363,6 +382,7 @@ impl Meetings {
             renders: AtomicU64::new(0),
             metrics: self.metrics.clone(),
             recorded: Mutex::new(None),
+            remote_followers: Mutex::default(),
         })
     }
 

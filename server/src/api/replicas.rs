@@ -74,6 +74,11 @@ enum Notice {
         caption: Option<String>,
         ended: bool,
     },
+    /// The sender relays meeting `code` to this many followers.
+    MeetingAudience {
+        code: String,
+        followers: usize,
+    },
 }
 
 /// What a relay hears of its meeting.
@@ -212,7 +217,7 @@ pub async fn listen(state: AppState) {
         match received {
             Ok(Some(notification)) => match serde_json::from_str::<Envelope>(notification.payload()) {
                 Ok(envelope) if envelope.from == replication.replica => {}
-                Ok(envelope) => apply(&state, replication, envelope.notice).await,
+                Ok(envelope) => apply(&state, replication, &envelope.from, envelope.notice).await,
                 Err(error) => warn!(%error, payload = notification.payload(), "ignoring an unreadable replica notice"),
             },
             // The connection was lost (and is back): notices may be missing.
@@ -225,8 +230,8 @@ pub async fn listen(state: AppState) {
     }
 }
 
-/// Applies another replica's notice here and tells this replica's sessions.
-async fn apply(state: &AppState, replication: &Replication, notice: Notice) {
+/// Applies the notice of replica `from` here and tells this replica's sessions.
+async fn apply(state: &AppState, replication: &Replication, from: &str, notice: Notice) {
     debug!(?notice, "replica notice");
     let changed = match notice {
         Notice::Comments { change: Change::Removed, id } => {
@@ -256,6 +261,12 @@ async fn apply(state: &AppState, replication: &Replication, notice: Notice) {
         }
         Notice::MeetingStatus { code, caption, ended } => {
             return to_relay(replication, &code, RelayNotice::Status { caption, ended }).await;
+        }
+        Notice::MeetingAudience { code, followers } => {
+            if let Ok(meeting) = state.meetings().find(&code) {
+                meeting.set_remote_followers(from, followers);
+            }
+            return;
         }
     };
     state.events().send(changed);
@@ -339,8 +350,10 @@ async fn relay(state: AppState, presenter: Presenter) {
                 if answered { continue } else { break "the presenter's server does not answer" }
             }
             Ok(()) = status.changed() => {
-                followed |= status.borrow_and_update().followers > 0;
-                if followed && presenter.meeting.status().followers == 0 { break "no follower left here" }
+                let followers = status.borrow_and_update().followers;
+                replication.send(Notice::MeetingAudience { code: code.clone(), followers });
+                followed |= followers > 0;
+                if followed && followers == 0 { break "no follower left here" }
                 continue;
             }
         };
@@ -366,6 +379,7 @@ async fn relay(state: AppState, presenter: Presenter) {
         }
     };
     lock(&replication.relays).remove(&code);
+    replication.send(Notice::MeetingAudience { code: code.clone(), followers: 0 });
     presenter.close(reason);
 }
 
