@@ -163,10 +163,29 @@ pub fn read_geojson(
         geojson::GeoJson::Geometry(g) => vec![(Some(g), Map::new())],
     };
     let features = features.into_iter().map(|(geometry, properties)| {
-        let geometry = geometry.map(|g| Geometry::try_from(&g.value).map_err(|e| format!("bad geometry: {e}")));
+        let geometry = geometry.map(|g| {
+            if !positions_have_xy(&g.value) {
+                return Err("bad geometry: a position needs at least two coordinates (x and y)".to_owned());
+            }
+            Geometry::try_from(&g.value).map_err(|e| format!("bad geometry: {e}"))
+        });
         Ok((geometry.transpose()?, properties))
     });
     features_to_scene(path, &file_crs, target, features)
+}
+
+/// Whether every position of `value` has at least two coordinates: the `geojson` crate's
+/// conversion to `geo` reads x and y without checking (a `[5]` position would panic).
+fn positions_have_xy(value: &geojson::GeometryValue) -> bool {
+    use geojson::GeometryValue as V;
+    let xy = |p: &geojson::Position| p.len() >= 2;
+    match value {
+        V::Point { coordinates } => xy(coordinates),
+        V::MultiPoint { coordinates } | V::LineString { coordinates } => coordinates.iter().all(xy),
+        V::MultiLineString { coordinates } | V::Polygon { coordinates } => coordinates.iter().flatten().all(xy),
+        V::MultiPolygon { coordinates } => coordinates.iter().flatten().flatten().all(xy),
+        V::GeometryCollection { geometries } => geometries.iter().all(|g| positions_have_xy(&g.value)),
+    }
 }
 
 /// Checks features read from `path` in `file_crs` (in file order; `Ok((None, _))` for one
@@ -512,6 +531,20 @@ mod tests {
         assert_eq!(split_csv_line(r#"1,"a, b",c"#), vec!["1", "a, b", "c"]);
         assert_eq!(split_csv_line(r#""say ""hi""",2"#), vec![r#"say "hi""#, "2"]);
         assert_eq!(split_csv_line(""), vec![""]);
+    }
+
+    #[test]
+    fn positions_need_x_and_y() {
+        let parse = |text: &str| serde_json::from_str::<geojson::Geometry>(text).expect("GeoJSON geometry").value;
+        assert!(positions_have_xy(&parse(r#"{"type": "LineString", "coordinates": [[5, 6], [7, 8, 9]]}"#)));
+        for short in [
+            r#"{"type": "Point", "coordinates": [5]}"#,
+            r#"{"type": "LineString", "coordinates": [[5]]}"#,
+            r#"{"type": "MultiPolygon", "coordinates": [[[[0, 0], [1, 0], [1], [0, 0]]]]}"#,
+            r#"{"type": "GeometryCollection", "geometries": [{"type": "Point", "coordinates": [1]}]}"#,
+        ] {
+            assert!(!positions_have_xy(&parse(short)), "{short}");
+        }
     }
 
     #[test]

@@ -34,8 +34,36 @@ pub fn load_gltf(path: &Path) -> Result<PlantModel, ModelError> {
     if !looks_like_gltf(&bytes) {
         return Err(ModelError::NotGltf { path: path.to_path_buf() });
     }
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(&bytes).map_err(|error| ModelError::Gltf { path: path.to_path_buf(), error })?;
+    // The gltf crate takes the GLB header's 12 bytes off the length the header declares
+    // without checking that it is at least that.
+    if let Some(declared) = bytes.get(8..12).filter(|_| bytes.starts_with(b"glTF"))
+        && let Ok(declared) = <[u8; 4]>::try_from(declared).map(u32::from_le_bytes)
+        && declared < 12
+    {
+        let error = gltf::binary::Error::Length { length: declared, length_read: bytes.len() };
+        return Err(ModelError::Gltf { path: path.to_path_buf(), error: gltf::Error::Binary(error) });
+    }
+    let gltf_error = |error| ModelError::Gltf { path: path.to_path_buf(), error };
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_error)?;
+    // The crate's validation reads each primitive's POSITION accessor before it checks that
+    // the index names one.
+    let json = document.into_json();
+    for (mesh, m) in json.meshes.iter().enumerate() {
+        for (primitive, p) in m.primitives.iter().enumerate() {
+            let position = p.attributes.get(&gltf::json::validation::Checked::Valid(Semantic::Positions));
+            if let Some(index) = position.map(|i| i.value()).filter(|&i| i >= json.accessors.len()) {
+                let reason = format!("accessor {index} does not exist (there are {})", json.accessors.len());
+                return Err(ModelError::BadAccessor {
+                    path: path.to_path_buf(),
+                    mesh,
+                    primitive,
+                    attribute: "POSITION",
+                    reason,
+                });
+            }
+        }
+    }
+    let document = Document::from_json(json).map_err(gltf_error)?;
     let base = path.parent().unwrap_or(Path::new(""));
     let buffers = load_buffers(path, base, &document, blob)?;
     let mut loader = Loader { path, base, document: &document, buffers, images: HashMap::new(), parts: Vec::new() };
@@ -478,5 +506,21 @@ mod tests {
         assert!(matches!(read_uri(dir.path(), "https://x/y.bin"), Err(UriError::Invalid(_))));
         let decoded = read_uri(dir.path(), "data:application/octet-stream;base64,AQID").unwrap();
         assert_eq!(&decoded[..3], &[1, 2, 3]);
+    }
+
+    /// Inputs the fuzzer found that made the gltf crate panic (`fuzz/regressions/gltf_model/`)
+    /// are errors naming what is wrong.
+    #[test]
+    fn a_short_glb_length_and_a_missing_position_accessor_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let glb = dir.path().join("short.glb");
+        std::fs::write(&glb, b"glTF\x02\0\0\0\x04\0\0\0").unwrap();
+        assert!(matches!(load_gltf(&glb), Err(ModelError::Gltf { .. })));
+        let json = dir.path().join("no-accessor.gltf");
+        let text = r#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}"#;
+        std::fs::write(&json, text).unwrap();
+        let error = load_gltf(&json).expect_err("no accessor 0");
+        assert!(matches!(error, ModelError::BadAccessor { attribute: "POSITION", .. }), "{error}");
+        assert!(error.to_string().contains("accessor 0 does not exist"), "{error}");
     }
 }
