@@ -197,6 +197,39 @@ async fn a_meeting_presented_on_one_replica_is_followed_on_another() {
     assert_eq!(get(&b.url(&format!("/api/meetings/{code}"))).await.status(), 404);
 }
 
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_single_servers_data_directory_joins_the_database_then_follows_it() {
+    let Some(postgres) = database() else { return };
+    let (dir_a, dir_b) = (tempfile::tempdir().expect("temp dir"), tempfile::tempdir().expect("temp dir"));
+    // A single server (SQLite) with an uploaded layer and art map.
+    let single = TestServer::start(dir_a.path(), |_| {});
+    let created = upload(&single, "name=Noise&kind=scalar&filename=noise.tif", scene_tiff(0.0)).await;
+    assert_eq!(created.status(), 201);
+    let id = json_of(created).await["id"].as_str().expect("id").to_owned();
+    assert_eq!(
+        client().put(single.url("/api/artmaps/tam/1")).body(black_tam()).send().await.expect("PUT").status(),
+        200
+    );
+    single.stop().expect("stopped");
+
+    // Started on PostgreSQL, its data directory adds what it holds to the database.
+    let a = replica(dir_a.path(), &postgres.url());
+    let b = replica(dir_b.path(), &postgres.url());
+    for server in [&a, &b] {
+        assert_eq!(ids(&json_of(get(&server.url("/api/layers")).await).await), [id.clone()]);
+        let art = json_of(get(&server.url("/api/artmaps")).await).await;
+        assert_eq!(art["tams"][1]["source"], "uploaded", "{art}");
+    }
+    // From then on the database is the truth: a layer deleted while A is down is gone from A
+    // when it comes back.
+    a.stop().expect("stopped");
+    assert_eq!(client().delete(b.url(&format!("/api/layers/{id}"))).send().await.expect("DELETE").status(), 204);
+    let a = replica(dir_a.path(), &postgres.url());
+    assert_eq!(ids(&json_of(get(&a.url("/api/layers")).await).await), Vec::<String>::new());
+    let art = json_of(get(&a.url("/api/artmaps")).await).await;
+    assert_eq!(art["tams"][1]["source"], "uploaded", "the art map stays: {art}");
+}
+
 /// A TAM strip of the renderer's shape (6 tone levels of 256²), every pixel ink.
 fn black_tam() -> Vec<u8> {
     let image = image::GrayImage::from_pixel(256 * 6, 256, image::Luma([0]));

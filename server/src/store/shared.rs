@@ -331,6 +331,8 @@ impl SharedStore {
                 None => self.put_art_map(local.kind, local.index, Some(&png)).await?,
             }
         }
+        // Read again: the maps just added are the database's now.
+        let shared = if mirrored { shared } else { self.art_maps().await? };
         self.pull_art_maps(store, &shared).await?;
         let text = serde_json::json!({ "database": database }).to_string();
         let store_ = store.clone();
