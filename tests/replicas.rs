@@ -216,7 +216,7 @@ async fn a_single_servers_data_directory_joins_the_database_then_follows_it() {
     let a = replica(dir_a.path(), &postgres.url());
     let b = replica(dir_b.path(), &postgres.url());
     for server in [&a, &b] {
-        assert_eq!(ids(&json_of(get(&server.url("/api/layers")).await).await), [id.clone()]);
+        assert_eq!(ids(&json_of(get(&server.url("/api/layers")).await).await), vec![id.clone()]);
         let art = json_of(get(&server.url("/api/artmaps")).await).await;
         assert_eq!(art["tams"][1]["source"], "uploaded", "{art}");
     }
