@@ -89,7 +89,7 @@ fn landcover_in_another_crs_places_the_same_plants_as_sampled_in_its_own() {
     };
     let hawthorn = scene.species.iter().position(|s| s.name == "hawthorn").unwrap();
     let rule = PlacementRule { class: 4, species: hawthorn, density_per_ha: 8.0, min_spacing: 0.0, scale: [1.0, 1.0] };
-    let direct = place_in(&terrain, terrain.bounds(), &class_at, &[rule], 4, 100_000).unwrap();
+    let direct = place_in(&terrain, terrain.bounds(), &class_at, &[rule], 4, 100_000, &|_| {}).unwrap();
     assert!(direct.len() > 100, "{} forest plants", direct.len());
 
     // Plants found in one set but not the other stand within one NLCD cell of a class change.

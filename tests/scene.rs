@@ -2,7 +2,7 @@
 
 use landsketch::gis::{Crs, GeoTransform, Raster};
 use landsketch::scene::terrain::Terrain;
-use landsketch::scene::vegetation::{PlacementRule, PlantInstance, place};
+use landsketch::scene::vegetation::{PlacementRule, PlantInstance, place, place_reporting};
 use landsketch::scene::{Scene, SceneError};
 use std::path::{Path, PathBuf};
 
@@ -51,6 +51,19 @@ fn placement_is_deterministic_for_a_seed() {
     assert!(!a.is_empty());
     assert_eq!(a, b);
     assert_ne!(a, c);
+}
+
+#[test]
+fn placement_reports_its_progress_within_the_layer() {
+    let (terrain, landcover) = fixture();
+    let reported = std::cell::RefCell::new(Vec::new());
+    let rules = [rule(4, 50.0), rule(3, 20.0)];
+    let placed = place_reporting(&terrain, &landcover, &rules, 7, 100_000, &|f| reported.borrow_mut().push(f)).unwrap();
+    assert_eq!(placed, place(&terrain, &landcover, &rules, 7, 100_000).unwrap(), "reporting changes nothing");
+    let reported = reported.into_inner();
+    assert!(reported.len() > 20, "many steps within one layer: {reported:?}");
+    assert!(reported.windows(2).all(|w| w[0] < w[1]), "rising: {reported:?}");
+    assert_eq!((reported[0], reported[reported.len() - 1]), (0.0, 1.0));
 }
 
 #[test]

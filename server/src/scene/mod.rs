@@ -194,7 +194,16 @@ impl Scene {
                     let what = format!("layer '{}': landcover_options", layer.name);
                     let landcover =
                         load_landcover(&base.join(file), &layer.landcover_options, &what, &scene_def()?, &terrain)?;
-                    plants = vegetation::place(&terrain, &landcover, &rules, layer.seed, config.max_plants)?;
+                    let layers = config.layers.len() as f32;
+                    let within = |done: f32| progress.report(Stage::Placement, (index as f32 + done) / layers);
+                    plants = vegetation::place_reporting(
+                        &terrain,
+                        &landcover,
+                        &rules,
+                        layer.seed,
+                        config.max_plants,
+                        &within,
+                    )?;
                 }
                 None if !rules.is_empty() => {
                     return Err(SceneError::Invalid(format!("layer '{}': rules need a `landcover`", layer.name)));

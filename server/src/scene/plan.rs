@@ -63,7 +63,7 @@ pub fn place_plan(
                     [rect.max().x.min(hi[0]), rect.max().y.min(hi[1])],
                 );
                 let inside = |p: [f64; 2]| f.geometry.contains(&Point::new(p[0], p[1])).then_some(1);
-                place_in(terrain, bounds, &inside, &[rule], feature_seed, remaining)?
+                place_in(terrain, bounds, &inside, &[rule], feature_seed, remaining, &|_| {})?
             }
             PlanKind::Hedgerows => {
                 let lines: Vec<&LineString<f64>> = match &f.geometry {

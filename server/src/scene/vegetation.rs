@@ -82,17 +82,30 @@ pub fn place(
     seed: u64,
     max_plants: usize,
 ) -> Result<Vec<PlantInstance>, SceneError> {
+    place_reporting(terrain, landcover, rules, seed, max_plants, &|_| {})
+}
+
+/// [`place`], telling `progress` the share of the layer done (0 to 1, rising; a forest of a
+/// million plants takes seconds).
+pub fn place_reporting(
+    terrain: &Terrain,
+    landcover: &Raster,
+    rules: &[PlacementRule],
+    seed: u64,
+    max_plants: usize,
+    progress: &dyn Fn(f32),
+) -> Result<Vec<PlantInstance>, SceneError> {
     check_same_crs(&terrain.frame, landcover)?;
     let (lo, hi) = terrain.bounds();
     let class_at = |p: [f64; 2]| {
         let (cx, cy) = terrain.frame.to_crs(p[0], p[1]);
         landcover.sample_nearest(cx, cy).map(|c| c.round() as i64)
     };
-    place_in(terrain, (lo, hi), &class_at, rules, seed, max_plants)
+    place_in(terrain, (lo, hi), &class_at, rules, seed, max_plants, progress)
 }
 
-/// [`place`] with the class under a scene point given by `class_at` (a land cover, a
-/// polygon) and candidates only within `bounds` (scene metres, e.g. a polygon's box).
+/// [`place_reporting`] with the class under a scene point given by `class_at` (a land cover,
+/// a polygon) and candidates only within `bounds` (scene metres, e.g. a polygon's box).
 pub fn place_in(
     terrain: &Terrain,
     bounds: ([f64; 2], [f64; 2]),
@@ -100,6 +113,7 @@ pub fn place_in(
     rules: &[PlacementRule],
     seed: u64,
     max_plants: usize,
+    progress: &dyn Fn(f32),
 ) -> Result<Vec<PlantInstance>, SceneError> {
     let (lo, hi) = bounds;
     let mut grid =
@@ -119,7 +133,14 @@ pub fn place_in(
                 rule.class, rule.density_per_ha
             )));
         }
+        let mut reported = -1;
         for j in j0..=j1 {
+            // Whole percents of the layer, so a bar is not redrawn per row.
+            let done = (rule_index as f64 + (j - j0) as f64 / (j1 - j0 + 1) as f64) / rules.len() as f64;
+            if (done * 100.0) as i32 > reported {
+                reported = (done * 100.0) as i32;
+                progress(done as f32);
+            }
             for i in i0..=i1 {
                 let [u, v, r, s] = cell_random(seed, rule_index, i, j);
                 let p = [(i as f64 + u) * step, (j as f64 + v) * step];
@@ -148,6 +169,7 @@ pub fn place_in(
             }
         }
     }
+    progress(1.0);
     Ok(plants)
 }
 
