@@ -6,8 +6,10 @@
 //! ([`crate::gis::LocalFrame`]) needs. Reprojection between CRSs uses the full definitions of
 //! [`crate::gis::reproject`].
 
+use std::collections::HashMap;
 use std::fmt;
 use std::str::FromStr;
+use std::sync::OnceLock;
 
 use super::error::GisError;
 
@@ -96,18 +98,25 @@ pub fn epsg_by_name(name: &str, geographic: bool) -> Option<u32> {
     if wanted.is_empty() {
         return None;
     }
-    let mut found = None;
-    for code in 2000..=u32::from(u16::MAX) {
-        let Some(entry) = epsg_entry(code) else { continue };
-        if entry.crs.is_geographic() != geographic || squeeze_name(entry.name) != wanted {
-            continue;
+    epsg_names().get(&(wanted, geographic)).copied().flatten()
+}
+
+/// Every EPSG code of the table by its squeezed name and whether it is geographic; `None` for
+/// a name more than one code has. Built once (reading the whole table takes a fifth of a
+/// second, too long for every upload whose CRS is named without an authority).
+fn epsg_names() -> &'static HashMap<(String, bool), Option<u32>> {
+    static NAMES: OnceLock<HashMap<(String, bool), Option<u32>>> = OnceLock::new();
+    NAMES.get_or_init(|| {
+        let mut names = HashMap::new();
+        for code in 2000..=u32::from(u16::MAX) {
+            let Some(entry) = epsg_entry(code) else { continue };
+            names
+                .entry((squeeze_name(entry.name), entry.crs.is_geographic()))
+                .and_modify(|found| *found = None)
+                .or_insert(Some(code));
         }
-        if found.is_some() {
-            return None;
-        }
-        found = Some(code);
-    }
-    found
+        names
+    })
 }
 
 impl Crs {
