@@ -535,15 +535,18 @@ mod tests {
 
     #[test]
     fn positions_need_x_and_y() {
-        let parse = |text: &str| serde_json::from_str::<geojson::Geometry>(text).expect("GeoJSON geometry").value;
-        assert!(positions_have_xy(&parse(r#"{"type": "LineString", "coordinates": [[5, 6], [7, 8, 9]]}"#)));
+        use geojson::GeometryValue as V;
+        let at = |c: &[f64]| geojson::Position::from(c.to_vec());
+        let line = |cs: &[&[f64]]| cs.iter().map(|c| at(c)).collect::<Vec<_>>();
+        assert!(positions_have_xy(&V::LineString { coordinates: line(&[&[5.0, 6.0], &[7.0, 8.0, 9.0]]) }));
+        let point = geojson::Geometry::new(V::Point { coordinates: at(&[1.0]) });
         for short in [
-            r#"{"type": "Point", "coordinates": [5]}"#,
-            r#"{"type": "LineString", "coordinates": [[5]]}"#,
-            r#"{"type": "MultiPolygon", "coordinates": [[[[0, 0], [1, 0], [1], [0, 0]]]]}"#,
-            r#"{"type": "GeometryCollection", "geometries": [{"type": "Point", "coordinates": [1]}]}"#,
+            V::Point { coordinates: at(&[5.0]) },
+            V::LineString { coordinates: line(&[&[5.0]]) },
+            V::MultiPolygon { coordinates: vec![vec![line(&[&[0.0, 0.0], &[1.0, 0.0], &[1.0], &[0.0, 0.0]])]] },
+            V::GeometryCollection { geometries: vec![point] },
         ] {
-            assert!(!positions_have_xy(&parse(short)), "{short}");
+            assert!(!positions_have_xy(&short), "{short:?}");
         }
     }
 
