@@ -121,11 +121,23 @@ fn hlp_blend(p: vec3<f32>, hlp: vec4<f32>, abstraction: f32) -> vec3<f32> {
     return mix(p, hlp.xyz + n / len * hlp.w, abstraction);
 }
 
-// The HLP abstraction 1 − f (eq. 4.8) of a plant: its layer style's, moved towards the value a
-// data layer maps onto abstraction at the plant's position by that mapping's weight (thesis
-// Table 9.1; `lod_mask.zw`, zero without such a mapping).
-fn plant_abstraction(lod_mask: vec4<f32>) -> f32 {
-    return mix(layer.hlp_abstraction, lod_mask.z, lod_mask.w);
+// How far towards full abstraction a plant `depth` metres away along the view is taken
+// (thesis 7.3, "increased abstraction of the background"): `distance_abstraction` times a
+// smoothstep from `abstraction_near` to `abstraction_far`.
+fn distance_share(depth: f32) -> f32 {
+    return layer.distance_abstraction * smoothstep(layer.abstraction_near, layer.abstraction_far, depth);
+}
+
+// A style value `v` raised towards 1 by the distance share `d`.
+fn with_distance(v: f32, d: f32) -> f32 {
+    return v + (1.0 - v) * d;
+}
+
+// The HLP abstraction 1 − f (eq. 4.8) of a plant at `at`: its layer style's raised with its
+// distance, moved towards the value a data layer maps onto abstraction at the plant's position
+// by that mapping's weight (thesis Table 9.1; `lod_mask.zw`, zero without such a mapping).
+fn plant_abstraction(lod_mask: vec4<f32>, at: vec3<f32>) -> f32 {
+    return mix(with_distance(layer.hlp_abstraction, distance_share(view_depth(at))), lod_mask.z, lod_mask.w);
 }
 
 fn view_depth(world: vec3<f32>) -> f32 {
@@ -136,7 +148,7 @@ fn view_depth(world: vec3<f32>) -> f32 {
 @vertex
 fn vs_main(in: VertexIn) -> VertexOut {
     // Leaves only: billboards (kind 3) already stand for their HLP sphere.
-    let abstraction = select(0.0, plant_abstraction(in.lod_mask), SURFACE == 2u);
+    let abstraction = select(0.0, plant_abstraction(in.lod_mask, in.offset_scale.xyz), SURFACE == 2u);
     return vertex_out(in, hlp_blend(in.position, in.hlp, abstraction));
 }
 
@@ -230,7 +242,7 @@ fn in_plane(v: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 // HLP's vertical axis ("Van Gogh", NPAR Fig. 3). The rest is the mesh vertices' `vertex_out`.
 @vertex
 fn vs_leaf(leaf: LeafIn) -> VertexOut {
-    let center = hlp_blend(leaf.center, leaf.hlp, plant_abstraction(leaf.lod_mask));
+    let center = hlp_blend(leaf.center, leaf.hlp, plant_abstraction(leaf.lod_mask, leaf.offset_scale.xyz));
     let from_hlp = center - leaf.hlp.xyz;
     let nh = select(leaf.normal, normalize(from_hlp), leaf.hlp.w > 0.0 && length(from_hlp) > 1e-6);
     var half = vec2<f32>(length(leaf.axis_u), length(leaf.axis_v));
@@ -504,7 +516,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
         if SURFACE == MASS {
             nh = n;
         }
-        n = normalize(mix(n, nh, layer.normal_blend));
+        n = normalize(mix(n, nh, with_distance(layer.normal_blend, distance_share(in.view_depth))));
         let ev = (frame.view * vec4<f32>(nh, 0.0)).xy;
         e = select(vec2<f32>(0.0), normalize(ev), length(ev) > 1e-4);
         radius_px = in.hlp_depth_radius.y / metres_per_px(in.hlp_depth_radius.x);

@@ -270,3 +270,32 @@ fn photorealism_draws_the_original_leaves() {
         renderer.render(FrameRequest::new(&camera, &photo, WIDTH, HEIGHT)).map(|f| f.image).unwrap()
     );
 }
+
+/// Distance-dependent abstraction (thesis 7.3, "increased abstraction of the background"): a
+/// tree nearer than `abstraction_near` is drawn as without it, one beyond `abstraction_far` as
+/// with HLP abstraction and normal blend at 1 — the same pixels — and the two differ.
+#[test]
+fn abstraction_rises_with_distance() {
+    let rising = Style {
+        leaf_mode: LeafMode::Elliptical,
+        distance_abstraction: 1.0,
+        abstraction_near: 40.0,
+        abstraction_far: 60.0,
+        ..Style::default()
+    };
+    let plain = Style { distance_abstraction: 0.0, ..rising.clone() };
+    let full = Style { hlp_abstraction: 1.0, normal_blend: 1.0, ..plain.clone() };
+    for (distance, same, other, name) in [(20.0f32, &plain, &full, "none"), (90.0, &full, &plain, "full")] {
+        let scene = trees_on_a_plain(&[[0.0, 0.0]]);
+        let renderer = full_detail(&scene);
+        let camera = camera_at(distance);
+        let render = |style: &Style| {
+            renderer.render(FrameRequest::new(&camera, style, WIDTH, HEIGHT)).map(|f| f.image).expect("render")
+        };
+        let image = render(&rising);
+        image.save(std::env::temp_dir().join(format!("landsketch-distance-abstraction-{distance}.png"))).ok();
+        assert!(image == render(same), "the tree {distance} m away is drawn with {name} abstraction");
+        let changed = image.pixels().zip(render(other).pixels()).filter(|(a, b)| a != b).count();
+        assert!(changed > 50, "the abstraction shows on the tree {distance} m away ({changed} pixels)");
+    }
+}

@@ -150,6 +150,13 @@ gpu_block! {
         pub image_space: u32,
         /// HLP abstraction 1 − f (thesis eq. 4.8).
         pub hlp_abstraction: f32,
+        /// Share of the way to 1 that the HLP abstraction and the normal blend rise with
+        /// distance ([`Style::distance_abstraction`]).
+        pub distance_abstraction: f32,
+        /// Where that rise starts and where it is full, metres from the eye (far > near).
+        pub abstraction_near: f32,
+        /// See `abstraction_near`.
+        pub abstraction_far: f32,
         /// Colour abstraction: texture → average material colour (thesis 6.2).
         pub color_abstraction: f32,
         /// TAM tiles per π (m = n).
@@ -192,6 +199,9 @@ impl LayerStyle {
             normal_blend: style.normal_blend,
             image_space: u32::from(style.hatch_space == HatchSpace::Image),
             hlp_abstraction: style.hlp_abstraction,
+            distance_abstraction: style.distance_abstraction,
+            abstraction_near: style.abstraction_near,
+            abstraction_far: style.abstraction_far.max(style.abstraction_near + 0.01),
             color_abstraction: style.color_abstraction,
             hatch_tiles: style.hatch_tiles,
             hatch_surface: style.hatch_surface,

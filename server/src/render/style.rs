@@ -467,6 +467,17 @@ style_fields! {
     /// HLP abstraction `1 − f` of thesis eq. 4.8: leaves move from their positions (0) to the
     /// surface of their HLP sphere (1).
     hlp_abstraction: f32 = 0.0, 0..=1;
+    /// Distance-dependent abstraction (thesis 7.3, "increased abstraction of the background"):
+    /// how much `hlp_abstraction` and `normal_blend` of the plants rise towards 1 with their
+    /// distance from the eye, none up to `abstraction_near`, this share of the way to 1 from
+    /// `abstraction_far` on, smoothly in between; 0 off. Near plants keep their detail while
+    /// the ones behind them simplify into their crowns' shapes.
+    distance_abstraction: f32 = 0.0, 0..=1;
+    /// Distance from the eye in metres (along the view) where `distance_abstraction` starts.
+    abstraction_near: f32 = 30.0, 0..=100000;
+    /// Distance from the eye in metres where `distance_abstraction` is reached in full (at
+    /// least `abstraction_near`).
+    abstraction_far: f32 = 150.0, 0..=100000;
     /// How leaves of plants at full detail are drawn: `original` (the model's leaf geometry),
     /// `billboard` (a camera-facing quad per leaf, SPEC R2), `reoriented` (each leaf's quad
     /// turned away from its HLP centre, thesis 4.2 "children's book") or `elliptical`
@@ -546,7 +557,8 @@ const PHOTOREAL_ORIGINAL_LEAVES: f32 = 0.5;
 impl Style {
     /// The parameters actually rendered: every field moved from its value towards its
     /// photorealistic value by `photorealism` p (thesis 8.2.7), `v + (target − v)·p`:
-    /// HLP abstraction and HLP normals → 0 (original geometry and lighting), contour threshold
+    /// HLP abstraction, its rise with distance and HLP normals → 0 (original geometry and
+    /// lighting), contour threshold
     /// → 10 (no contours), contour and silhouette strength and silhouette support → 0 (no
     /// lines), hatch brightness → 1 (no strokes), colour → 1, saturation → 1, colour
     /// abstraction → 0 (full, realistic colour), Gooch and toon → 0 (Lambert shading), sky → 1;
@@ -559,6 +571,7 @@ impl Style {
         let to = |value: f32, target: f32| value + (target - value) * p;
         Style {
             hlp_abstraction: to(self.hlp_abstraction, 0.0),
+            distance_abstraction: to(self.distance_abstraction, 0.0),
             normal_blend: to(self.normal_blend, 0.0),
             contour_threshold: to(self.contour_threshold, PHOTOREAL_CONTOUR_THRESHOLD),
             contour_strength: to(self.contour_strength, 0.0),
