@@ -379,7 +379,7 @@ impl Server {
             None => SqlStore::open_in(&config.data_dir).await?,
         };
         let store = Arc::new(store);
-        let replication = replicas::Replication::open(config.database_url.as_deref(), &store).await?;
+        let replication = replicas::Replication::open(config.database_url.as_deref()).await?;
         if !config.web_dir.join("index.html").is_file() {
             tracing::warn!(dir = %config.web_dir.display(), "no index.html in the web directory: the browser UI is off");
         }
@@ -440,7 +440,10 @@ impl Server {
             state.shutdown_receiver(),
         ));
         tokio::spawn(replicas::listen(state.clone()));
-        let loaded = load(state.clone(), loaded).await;
+        let loaded = match replicas::sync(&state).await {
+            Ok(()) => load(state.clone(), loaded).await,
+            Err(error) => Err(error.into()),
+        };
         if loaded.is_err() {
             state.begin_shutdown();
         }

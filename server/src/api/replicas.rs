@@ -122,18 +122,16 @@ pub struct Replication {
 }
 
 impl Replication {
-    /// Opens the shared store when `url` is a PostgreSQL URL (`None` for SQLite: one server)
-    /// and brings the local store `store` in line with it.
-    pub async fn open(url: Option<&str>, store: &Arc<Store>) -> Result<Option<Replication>, SharedError> {
+    /// Opens the shared store when `url` is a PostgreSQL URL (`None` for SQLite: one server);
+    /// [`sync`] brings the local store in line with it.
+    pub async fn open(url: Option<&str>) -> Result<Option<Replication>, SharedError> {
         let Some(url) = url.filter(|u| u.starts_with("postgres://") || u.starts_with("postgresql://")) else {
             return Ok(None);
         };
         let shared = SharedStore::open(url).await?;
-        let changed = shared.sync(store).await?;
         let mut random = [0u8; 8];
         getrandom::fill(&mut random).map_err(|e| SharedError::Task(e.to_string()))?;
         let replica = super::view::hex(&random);
-        info!(%replica, layers = store.list().len(), synced = changed.len(), "sharing layers and art maps with the other replicas");
         let (outbox, mut queue) = mpsc::unbounded_channel::<String>();
         let sender = shared.clone();
         tokio::spawn(async move {
@@ -180,6 +178,16 @@ impl Replication {
         }
         Err(shared_error(error))
     }
+}
+
+/// Brings this replica's local store in line with the shared database (while the server
+/// answers, before the scene is ready: copying many layers may take a while).
+pub async fn sync(state: &AppState) -> Result<(), SharedError> {
+    let Some(replication) = state.replication() else { return Ok(()) };
+    let changed = replication.shared.sync(state.store()).await?;
+    let (replica, layers) = (&replication.replica, state.store().list().len());
+    info!(%replica, layers, synced = changed.len(), "sharing layers and art maps with the other replicas");
+    Ok(())
 }
 
 /// The API error of a shared-store failure.
