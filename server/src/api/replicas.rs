@@ -8,6 +8,11 @@
 //!
 //! A listener that lost its connection catches up when it is back: it syncs every layer and
 //! the art maps and tells its sessions to reload.
+//!
+//! A meeting is followed on another replica than its presenter's through a relay there
+//! ([`find_meeting`]): the presenter's replica sends the view of each presenter frame, its
+//! caption and its end; the relay renders each view once for its followers and reports how
+//! many follow. Frames themselves never cross between replicas.
 
 use super::AppState;
 use super::artmaps;
