@@ -354,6 +354,8 @@ async fn relay(state: AppState, presenter: Presenter) {
     replication.send(Notice::MeetingWanted { code: code.clone() });
     let lane = ready.pool.session_lane();
     let mut status = presenter.meeting.subscribe();
+    // The first follower may have joined before this task subscribed: report the count now.
+    status.mark_changed();
     let (mut answered, mut followed) = (false, false);
     let reason = loop {
         let wait = if answered { RELAY_IDLE } else { RELAY_ANSWER };
