@@ -373,7 +373,7 @@ async fn persist(
     if written.is_ok()
         && let Some(replication) = state.replication()
     {
-        written = replication.shared().put_art_map(kind, index, png.as_deref()).await.map_err(shared_error);
+        written = replication.put_art_map(kind, index, png.as_deref()).await.map_err(shared_error);
     }
     if written.is_err()
         && let Err(error) = apply(ready, undo).await

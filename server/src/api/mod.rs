@@ -439,8 +439,17 @@ impl Server {
             state.config().send_buffer(),
             state.shutdown_receiver(),
         ));
-        tokio::spawn(replicas::listen(state.clone()));
-        let loaded = match replicas::sync(&state).await {
+        // Listening starts before the copy, so that nothing changed in between is missed.
+        let synced = match replicas::subscribe(&state).await {
+            Ok(listener) => {
+                if let Some(listener) = listener {
+                    tokio::spawn(replicas::listen(state.clone(), listener));
+                }
+                replicas::sync(&state).await
+            }
+            Err(error) => Err(error),
+        };
+        let loaded = match synced {
             Ok(()) => load(state.clone(), loaded).await,
             Err(error) => Err(error.into()),
         };

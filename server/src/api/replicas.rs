@@ -23,12 +23,14 @@ use super::layers::store_error;
 use super::meetings::{Meeting, Presenter, RELAYED, SharedFrame, normalize_code};
 use super::pool::FrameKind;
 use super::view::ViewParams;
+use crate::render::art_textures::ArtKind;
 use crate::scene::camera_params::Source;
 use crate::store::participation::CommentStatus;
 use crate::store::shared::{Pulled, SharedError, SharedStore};
 use crate::store::{LayerMeta, Store};
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
+use sqlx::postgres::PgListener;
+use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 use tokio::sync::{Notify, mpsc};
@@ -124,6 +126,8 @@ pub struct Replication {
     /// Meetings presented here whose frames go to other replicas: how to ask for the newest
     /// frame again.
     forwards: Mutex<HashMap<String, Arc<Notify>>>,
+    /// Meetings relayed here whose end was heard (the database may record it a moment later).
+    ended: Mutex<HashSet<String>>,
 }
 
 impl Replication {
@@ -146,12 +150,14 @@ impl Replication {
                 }
             }
         });
-        Ok(Some(Replication { shared, replica, outbox, relays: Mutex::default(), forwards: Mutex::default() }))
-    }
-
-    /// The shared store.
-    pub fn shared(&self) -> &SharedStore {
-        &self.shared
+        Ok(Some(Replication {
+            shared,
+            replica,
+            outbox,
+            relays: Mutex::default(),
+            forwards: Mutex::default(),
+            ended: Mutex::default(),
+        }))
     }
 
     /// Queues the notice of `changed` for the other replicas.
@@ -161,27 +167,53 @@ impl Replication {
         }
     }
 
-    /// Queues `notice` for the other replicas (one too large for a `NOTIFY` is dropped with a
-    /// warning).
+    /// Queues `notice` for the other replicas.
     fn send(&self, notice: Notice) {
+        if let Some(payload) = self.payload(notice) {
+            let _ = self.outbox.send(payload);
+        }
+    }
+
+    /// The `NOTIFY` payload of `notice` from this replica; `None` (with a warning) for one too
+    /// large.
+    fn payload(&self, notice: Notice) -> Option<String> {
         match serde_json::to_string(&Envelope { from: self.replica.clone(), notice }) {
-            Ok(payload) if payload.len() <= MAX_PAYLOAD => {
-                let _ = self.outbox.send(payload);
+            Ok(payload) if payload.len() <= MAX_PAYLOAD => Some(payload),
+            Ok(payload) => {
+                warn!(bytes = payload.len(), "a replica notice is too large for NOTIFY; dropped");
+                None
             }
-            Ok(payload) => warn!(bytes = payload.len(), "a replica notice is too large for NOTIFY; dropped"),
-            Err(error) => warn!(%error, "cannot encode a replica notice"),
+            Err(error) => {
+                warn!(%error, "cannot encode a replica notice");
+                None
+            }
         }
     }
 
     /// Writes the local store's layer `id` to the shared store (`before`: the version the
-    /// local write started from). When that fails the local copy is made the shared one again,
-    /// so the replicas agree, and the error is returned.
+    /// local write started from), telling the other replicas with the write, so that they
+    /// hear of it even if this one dies right after. When that fails the local copy is made
+    /// the shared one again, so the replicas agree, and the error is returned. (The `changed`
+    /// message [`AppState::publish`] announces afterwards finds the others up to date.)
     pub async fn push_layer(&self, store: &Arc<Store>, id: &str, before: Option<&LayerMeta>) -> Result<(), ApiError> {
-        let Err(error) = self.shared.push_layer(store, id, before).await else { return Ok(()) };
+        let change = match (before, store.get(id).is_ok()) {
+            (_, false) => Change::Removed,
+            (None, true) => Change::Added,
+            (Some(_), true) => Change::Changed,
+        };
+        let notice = self.payload(Notice::Layers { change, id: id.to_owned() });
+        let Err(error) = self.shared.push_layer(store, id, before, notice.as_deref()).await else { return Ok(()) };
         if let Err(restore) = self.shared.pull_layer(store, id).await {
             warn!(layer = id, error = %restore, "cannot restore a layer's local copy from the shared database");
         }
         Err(shared_error(error))
+    }
+
+    /// Stores (`Some`) or removes (`None`) the uploaded art map `index` of `kind` in the
+    /// shared store, telling the other replicas with the write.
+    pub async fn put_art_map(&self, kind: ArtKind, index: usize, png: Option<&[u8]>) -> Result<(), SharedError> {
+        let notice = self.payload(Notice::Artmaps);
+        self.shared.put_art_map(kind, index, png, notice.as_deref()).await
     }
 }
 
@@ -205,23 +237,20 @@ pub fn shared_error(error: SharedError) -> ApiError {
     }
 }
 
-/// Listens for the other replicas' notices until the server shuts down, applying each to
-/// this replica (see the module documentation).
-pub async fn listen(state: AppState) {
+/// Starts listening for the other replicas' notices (`None` without replicas). Done before
+/// [`sync`], so that no change made between the copy and the listening is missed.
+pub async fn subscribe(state: &AppState) -> Result<Option<PgListener>, SharedError> {
+    match state.replication() {
+        Some(replication) => replication.shared.listen().await.map(Some),
+        None => Ok(None),
+    }
+}
+
+/// Applies the other replicas' notices heard by `listener` (from [`subscribe`]) until the
+/// server shuts down (see the module documentation).
+pub async fn listen(state: AppState, mut listener: PgListener) {
     let Some(replication) = state.replication() else { return };
     let mut stopping = state.shutdown_receiver();
-    let mut listener = loop {
-        match replication.shared.listen().await {
-            Ok(listener) => break listener,
-            Err(error) => {
-                warn!(%error, "cannot listen for the other replicas; retrying");
-                tokio::select! {
-                    () = tokio::time::sleep(Duration::from_secs(1)) => {}
-                    _ = stopping.wait_for(|s| *s) => return,
-                }
-            }
-        }
-    };
     loop {
         let received = tokio::select! {
             received = listener.try_recv() => received,
@@ -326,7 +355,8 @@ async fn catch_up(state: &AppState, replication: &Replication) {
 pub async fn find_meeting(state: &AppState, given: &str) -> Result<Arc<Meeting>, ApiError> {
     let local = state.meetings().find(given);
     let (Err(_), Some(code)) = (&local, normalize_code(given)) else { return local };
-    if state.replication().is_none() || state.ready().is_none() {
+    let Some(replication) = state.replication().filter(|_| state.ready().is_some()) else { return local };
+    if lock(&replication.ended).contains(&code) {
         return local;
     }
     let record = state.participation().meeting(&code).await.map_err(|e| ApiError::Storage(e.to_string()))?;
@@ -372,37 +402,41 @@ async fn relay(state: AppState, presenter: Presenter) {
                 continue;
             }
         };
-        // Only the newest frame of a burst is rendered.
-        let mut newest = notice;
-        while let Ok(next) = notices.try_recv() {
-            if let Some(RelayNotice::Status { .. }) = newest {
-                apply_status(&presenter, newest.take());
-            }
-            newest = Some(next);
-        }
-        match newest {
-            Some(RelayNotice::Frame { frame_id, view, eye_height }) => {
-                answered = true;
-                match relayed_frame(&state, ready, &lane, frame_id, &view, eye_height).await {
-                    Ok(frame) => presenter.meeting.publish(frame),
-                    Err(error) => warn!(meeting = %code, %error, "cannot render a relayed meeting frame"),
+        // The notices waiting now: statuses applied in order, only the newest frame rendered.
+        let (mut frame, mut next, mut end) = (None, notice, None);
+        loop {
+            match next {
+                Some(RelayNotice::Frame { frame_id, view, eye_height }) => frame = Some((frame_id, view, eye_height)),
+                Some(RelayNotice::Status { ended: true, .. }) => {
+                    lock(&replication.ended).insert(code.clone());
+                    end = Some("the presenter ended the meeting");
+                    break;
+                }
+                Some(RelayNotice::Status { caption, .. }) => presenter.meeting.set_caption(caption),
+                None => {
+                    end = Some("the server is shutting down");
+                    break;
                 }
             }
-            Some(RelayNotice::Status { ended: true, .. }) => break "the presenter ended the meeting",
-            status @ Some(RelayNotice::Status { .. }) => apply_status(&presenter, status),
-            None => break "the server is shutting down",
+            match notices.try_recv() {
+                Ok(notice) => next = Some(notice),
+                Err(_) => break,
+            }
+        }
+        if let Some((frame_id, view, eye_height)) = frame {
+            answered = true;
+            match relayed_frame(&state, ready, &lane, frame_id, &view, eye_height).await {
+                Ok(frame) => presenter.meeting.publish(frame),
+                Err(error) => warn!(meeting = %code, %error, "cannot render a relayed meeting frame"),
+            }
+        }
+        if let Some(reason) = end {
+            break reason;
         }
     };
     lock(&replication.relays).remove(&code);
     replication.send(Notice::MeetingAudience { code: code.clone(), followers: 0 });
     presenter.close(reason);
-}
-
-/// Sets the caption of a relayed meeting from a status notice.
-fn apply_status(presenter: &Presenter, notice: Option<RelayNotice>) {
-    if let Some(RelayNotice::Status { caption, .. }) = notice {
-        presenter.meeting.set_caption(caption);
-    }
 }
 
 /// Renders the view of a relayed frame here: the frame its followers get.

@@ -129,7 +129,7 @@ impl SharedStore {
                 .execute(&mut *tx),
             )
             .await?;
-        shared.commit(tx).await?;
+        shared.commit(tx, None).await?;
         Ok(shared)
     }
 
@@ -155,8 +155,15 @@ impl SharedStore {
     /// Writes the local store's layer `id` to the database (or removes it there when it is no
     /// longer stored locally); `before` is the version the local write started from (`None`
     /// for a new layer). Refused with [`SharedError::Conflict`] when the database holds
-    /// another version than `before`.
-    pub async fn push_layer(&self, store: &Store, id: &str, before: Option<&LayerMeta>) -> Result<(), SharedError> {
+    /// another version than `before`. `notice` is sent on [`CHANNEL`] with the write: it
+    /// reaches the other replicas at the commit, even if this one dies right after.
+    pub async fn push_layer(
+        &self,
+        store: &Store,
+        id: &str,
+        before: Option<&LayerMeta>,
+        notice: Option<&str>,
+    ) -> Result<(), SharedError> {
         let now = store.get(id).ok();
         let mut tx = self.begin().await?;
         let row: Option<String> = self
@@ -172,7 +179,7 @@ impl SharedStore {
         }
         let Some(meta) = now else {
             self.run(sqlx::query("DELETE FROM landsketch_layers WHERE id = $1").bind(id).execute(&mut *tx)).await?;
-            return self.commit(tx).await;
+            return self.commit(tx, notice).await;
         };
         let text = serde_json::to_string(&meta).map_err(|e| SharedError::Task(e.to_string()))?;
         // A new layer: another replica creating the same id at once waits for this insert and
@@ -213,7 +220,7 @@ impl SharedStore {
                 .execute(&mut *tx),
         )
         .await?;
-        self.commit(tx).await
+        self.commit(tx, notice).await
     }
 
     /// Makes the local copy of layer `id` the database's: installs it (steps the local copy
@@ -309,7 +316,7 @@ impl SharedStore {
                 changed.push(local.id);
             } else {
                 info!(layer = %local.id, "adding a layer of the data directory to the shared database");
-                self.push_layer(store, &local.id, None).await?;
+                self.push_layer(store, &local.id, None, None).await?;
             }
         }
         for id in ids {
@@ -328,7 +335,7 @@ impl SharedStore {
                     let store = store.clone();
                     blocking(move || store.delete_art_map(local.kind, local.index)).await?;
                 }
-                None => self.put_art_map(local.kind, local.index, Some(&png)).await?,
+                None => self.put_art_map(local.kind, local.index, Some(&png), None).await?,
             }
         }
         // Read again: the maps just added are the database's now.
@@ -340,8 +347,15 @@ impl SharedStore {
         Ok(changed)
     }
 
-    /// Stores (`Some`) or removes (`None`) the uploaded art map `index` of `kind`.
-    pub async fn put_art_map(&self, kind: ArtKind, index: usize, png: Option<&[u8]>) -> Result<(), SharedError> {
+    /// Stores (`Some`) or removes (`None`) the uploaded art map `index` of `kind`, sending
+    /// `notice` with the write (as [`SharedStore::push_layer`]).
+    pub async fn put_art_map(
+        &self,
+        kind: ArtKind,
+        index: usize,
+        png: Option<&[u8]>,
+        notice: Option<&str>,
+    ) -> Result<(), SharedError> {
         let index = i64::try_from(index).map_err(|e| SharedError::Task(e.to_string()))?;
         let query = match png {
             Some(png) => sqlx::query(
@@ -355,8 +369,9 @@ impl SharedStore {
                 .bind(kind.name())
                 .bind(index),
         };
-        self.run(query.execute(&self.pool)).await?;
-        Ok(())
+        let mut tx = self.begin().await?;
+        self.run(query.execute(&mut *tx)).await?;
+        self.commit(tx, notice).await
     }
 
     /// Every uploaded art map in the database, TAMs before SAMs, each kind by index.
@@ -403,7 +418,16 @@ impl SharedStore {
         self.run(self.pool.begin()).await
     }
 
-    async fn commit(&self, tx: Transaction<'static, sqlx::Postgres>) -> Result<(), SharedError> {
+    /// Commits `tx`, with `notice` sent on [`CHANNEL`] (PostgreSQL delivers it at the commit).
+    async fn commit(
+        &self,
+        mut tx: Transaction<'static, sqlx::Postgres>,
+        notice: Option<&str>,
+    ) -> Result<(), SharedError> {
+        if let Some(payload) = notice {
+            let notify = sqlx::query("SELECT pg_notify($1, $2)").bind(CHANNEL).bind(payload);
+            self.run(notify.execute(&mut *tx)).await?;
+        }
         self.run(tx.commit()).await
     }
 
