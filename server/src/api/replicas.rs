@@ -160,10 +160,13 @@ impl Replication {
         }))
     }
 
-    /// Queues the notice of `changed` for the other replicas.
+    /// Queues the notice of `changed` for the other replicas. Layers and art maps are
+    /// announced with their writes, inside the transaction ([`Replication::push_layer`],
+    /// [`Replication::put_art_map`]), so not again here.
     pub fn announce(&self, changed: &Changed) {
-        if let Some(notice) = Notice::of(changed) {
-            self.send(notice);
+        match Notice::of(changed) {
+            Some(Notice::Layers { .. } | Notice::Artmaps) | None => {}
+            Some(notice) => self.send(notice),
         }
     }
 
@@ -193,8 +196,7 @@ impl Replication {
     /// Writes the local store's layer `id` to the shared store (`before`: the version the
     /// local write started from), telling the other replicas with the write, so that they
     /// hear of it even if this one dies right after. When that fails the local copy is made
-    /// the shared one again, so the replicas agree, and the error is returned. (The `changed`
-    /// message [`AppState::publish`] announces afterwards finds the others up to date.)
+    /// the shared one again, so the replicas agree, and the error is returned.
     pub async fn push_layer(&self, store: &Arc<Store>, id: &str, before: Option<&LayerMeta>) -> Result<(), ApiError> {
         let change = match (before, store.get(id).is_ok()) {
             (_, false) => Change::Removed,
