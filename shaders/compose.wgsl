@@ -123,9 +123,15 @@ fn stroke_ink(p: vec2<i32>, base: i32, darkness: f32, rotation: vec2<f32>) -> f3
         let r = rotation;
         let c = vec2<f32>(r.x * l.coords.x - r.y * l.coords.y, r.y * l.coords.x + r.x * l.coords.y);
         ink += l.weight * tam_ink(c, base, darkness, l.lod);
-        squares += l.weight * l.weight;
+        // A layer's lookup is itself a blend of two mip levels (trilinear), by the fractional
+        // part f of its level: its strokes' variance is (1 − f)² + f² of one level's, which the
+        // normalisation restores as it does the layers' (terrain layers only: a single layer
+        // is returned as it is).
+        let f = fract(max(l.lod, 0.0));
+        squares += l.weight * l.weight * select(1.0, (1.0 - f) * (1.0 - f) + f * f, frame.layers > 1);
     }
-    let mean = saturate(darkness);
+    // The lookups' mean ink: the darkness, up to the darkest tone level's 0.9 (`tam_ink`).
+    let mean = clamp(darkness, 0.0, 0.9);
     return saturate(mean + (ink - mean) / sqrt(max(squares, 1e-4)));
 }
 

@@ -86,7 +86,7 @@ struct VertexOut {
     @location(7) @interpolate(flat) reference_uv: vec2<f32>,
     // object-space hatch coordinates for terrain (planar) and wood (cylindrical)
     @location(8) object_uv: vec2<f32>,
-    @location(9) @interpolate(flat) lod_mask: vec2<f32>,
+    @location(9) @interpolate(flat) lod_mask: vec4<f32>,
     // the plant's own HLP sphere for billboard normals: centre in NDC, view depth, radius
     @location(10) @interpolate(flat) own_sphere: vec4<f32>,
     // leaf particles: xy the position in the particle, (±1, ±1) at its corners; z 1 for an
@@ -176,7 +176,7 @@ fn vertex_out(in: VertexIn, p: vec3<f32>) -> VertexOut {
     out.hlp_depth_radius = vec2<f32>(view_depth(reference.xyz), reference.w);
     let own_clip = frame.view_proj * vec4<f32>(center, 1.0);
     out.own_sphere = vec4<f32>(own_clip.xy / own_clip.w, view_depth(center), in.hlp.w * in.offset_scale.w);
-    out.lod_mask = in.lod_mask.xy;
+    out.lod_mask = in.lod_mask;
     out.reference_uv = vec2<f32>(0.0);
     if has_hlp {
         out.reference_uv = references[in.reference_base + in.hlp_index];
@@ -324,6 +324,9 @@ const COVER_RIPPLES: u32 = 4u;
 // orientations nearest its own, each with hatch coordinates fixed to the ground, so a
 // direction that varies over the slope never rotates (and swirls) the coordinates themselves.
 const TERRAIN_ORIENTATIONS: f32 = 8.0;
+// How much longer than across them the ground's footprint along the strokes may be before it
+// sets their scale (`terrain_hatch`).
+const TERRAIN_ANISOTROPY: f32 = 4.0;
 
 // What the G-buffer holds of object-space terrain hatching (compose.wgsl's `terrain_layers`
 // reads it): `hatch` the TAM coordinates of the two orientations at the finer stroke scale,
@@ -349,8 +352,8 @@ struct TerrainHatch {
 // view (the camera's right axis), as a panorama painter gives fields and water their own
 // strokes (Bratkova et al. 2009).
 fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>, land: CoverStyle) -> TerrainHatch {
-    let metres_per_px = sqrt(length(dpdx(world_xy)) * length(dpdy(world_xy)));
-    let scale = exp2(floor(log2(max(metres_per_px * layer.terrain_tile, 1e-6))));
+    let dx = dpdx(world_xy);
+    let dy = dpdy(world_xy);
     let strokes = select(layer.terrain_strokes, land.strokes, land.strokes != 0u);
     var d = n.xy + vec2<f32>(0.01, 0.0);
     if strokes == TERRAIN_CONTOUR {
@@ -362,6 +365,17 @@ fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>, land: CoverStyle) -> Terrain
     if strokes == COVER_RIPPLES {
         d = vec2<f32>(frame.view[0].x, frame.view[1].x) + vec2<f32>(1e-4, 0.0);
     }
+    // The footprint across the strokes (metres of the ground per pixel, measured along the
+    // spacing of the strokes): on ground seen at a grazing angle strokes running across the
+    // view keep their spacing on screen (the scale grows with the foreshortening) and strokes
+    // running towards the eye their width; along the strokes the footprint may be at most
+    // TERRAIN_ANISOTROPY times longer, so their dashes do not shrink below a few pixels.
+    let along_dir = normalize(d);
+    let across_dir = vec2<f32>(-along_dir.y, along_dir.x);
+    let across = length(vec2<f32>(dot(across_dir, dx), dot(across_dir, dy)));
+    let along = length(vec2<f32>(dot(along_dir, dx), dot(along_dir, dy)));
+    let metres_per_px = clamp(across, along / TERRAIN_ANISOTROPY, sqrt(across * along) * 2.0);
+    let scale = exp2(floor(log2(max(metres_per_px * layer.terrain_tile, 1e-6))));
     let x = fract(atan2(d.y, d.x) / PI) * TERRAIN_ORIENTATIONS;
     let a = floor(x);
     let b = a + 1.0;
@@ -437,7 +451,7 @@ fn billboard_normal(frag: vec2<f32>, in: VertexOut) -> vec3<f32> {
 // the pixels its plants leave.
 fn mass_cover(in: VertexOut) -> f32 {
     let px = in.uv.y / metres_per_px(in.view_depth);
-    let band = in.lod_mask;
+    let band = in.lod_mask.xy;
     return select(select(0.0, 1.0, px < band.x), saturate((band.y - px) / (band.y - band.x)), band.y > band.x);
 }
 
@@ -486,7 +500,9 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     if SURFACE != 0u && SURFACE != MASS && (dither < in.lod_mask.x || dither >= in.lod_mask.y) {
         discard;
     }
-    if SURFACE == MASS && dither >= mass_cover(in) {
+    // A chunk of masses between two levels of its domes draws each in its share of the dither
+    // values (`lod_mask.zw`), so the coarser level blends in instead of popping.
+    if SURFACE == MASS && (dither >= mass_cover(in) || dither < in.lod_mask.z || dither >= in.lod_mask.w) {
         discard;
     }
     var n = normalize(in.normal);

@@ -453,13 +453,14 @@ async fn health_answers_quickly_during_a_large_append() {
     let meta = json_of(appended).await;
     assert_eq!(meta["steps"].as_array().map(Vec::len), Some(3));
     assert_eq!((meta["min"].as_f64(), meta["max"].as_f64()), (Some(0.0), Some(5.0 + 2047.0)));
-    // On a loaded test machine a poll may miss its time slice; a store lock held across the
-    // append's writes would stall every poll behind it instead.
+    // On a loaded test machine a poll may miss its time slice (one in ten, and at least one:
+    // a short append makes few polls); a store lock held across the append's writes would
+    // stall every poll behind it instead.
     latencies.sort();
     let limit = std::time::Duration::from_millis(100);
     let slow = latencies.iter().filter(|l| **l > limit).count();
     assert!(
-        !latencies.is_empty() && slow * 10 <= latencies.len(),
+        latencies.len() >= 3 && slow <= (latencies.len() / 10).max(1),
         "{slow} of {} polls over {limit:?}: {latencies:?}",
         latencies.len()
     );

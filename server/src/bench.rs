@@ -101,6 +101,10 @@ pub struct StyleRun {
     pub per_level: [u64; 3],
     /// Hatching reference points of the frame (HLPs near, plants, terrain-grid cells far).
     pub reference_points: u64,
+    /// Plants culling looked at one by one (those of the plant clusters it opened).
+    pub plants_visited: u64,
+    /// Domes of vegetation masses drawn.
+    pub mass_domes: u64,
 }
 
 /// The figures of one scene size.
@@ -290,6 +294,8 @@ fn run_style(
         plants_drawn: stats.plants_drawn,
         per_level: stats.per_level,
         reference_points: stats.reference_points,
+        plants_visited: stats.plants_visited,
+        mass_domes: stats.mass_domes,
     })
 }
 

@@ -63,6 +63,12 @@ enum Command {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
+        /// Write every frame of both variants into this directory (`object-00.png`,
+        /// `image-00.png`, …) and each frame's motion-compensated difference to the one before
+        /// (`object-difference-01.png`, …: darker where they differ) to see where the figures
+        /// come from.
+        #[arg(long)]
+        frames: Option<PathBuf>,
         #[command(flatten)]
         cache: CacheArgs,
     },
@@ -142,7 +148,8 @@ struct CacheArgs {
     #[arg(long)]
     no_cache: bool,
     /// Level-of-detail thresholds in projected plant height (pixels), a JSON object of any of
-    /// `full_px`, `hlp_px`, `min_px`, `mass_px`, `grid_px`, `fade`, `hlp_budget`, e.g.
+    /// `full_px`, `hlp_px`, `min_px`, `mass_px`, `grid_px`, `fade`, `hlp_budget`, `billboard_budget`,
+    /// `lone_budget`, e.g.
     /// `{"mass_px": 16}`.
     #[arg(long, value_name = "JSON")]
     lod: Option<String>,
@@ -292,8 +299,9 @@ fn main() -> Result<()> {
         Command::Bench(args) => bench(&args),
         Command::Legend(args) => legend(&args),
         Command::Serve(config) => serve(config),
-        Command::Coherence { scene, width, height, steps, style, json, cache } => {
-            coherence(&scene, width, height, steps, style.as_deref(), json, &cache)
+        Command::Coherence { scene, width, height, steps, style, json, frames, cache } => {
+            let output = CoherenceOutput { json, frames };
+            coherence(&scene, width, height, steps, style.as_deref(), &output, &cache)
         }
         Command::Presets { schema, json } => {
             presets(schema, json);
@@ -563,16 +571,22 @@ fn viewpoint_camera(path: &Path, name: &str, scene: &Scene, styles: &mut ViewSty
     Ok(resolved.with_context(|| format!("viewpoint {name:?} of {}", path.display()))?.camera)
 }
 
+/// What `landsketch coherence` prints and writes besides its figures.
+struct CoherenceOutput {
+    json: bool,
+    frames: Option<PathBuf>,
+}
+
 fn coherence(
     scene: &Path,
     width: u32,
     height: u32,
     steps: usize,
     style: Option<&str>,
-    json: bool,
+    output: &CoherenceOutput,
     cache: &CacheArgs,
 ) -> Result<()> {
-    use landsketch::render::coherence::{Flicker, camera_path, flicker};
+    use landsketch::render::coherence::{Flicker, camera_path, measure_path};
     use landsketch::render::style::{HatchSpace, TerrainStrokes};
     let styles = view_style(None, style, &[])?;
     let bar = LoadBar::start();
@@ -589,10 +603,36 @@ fn coherence(
     };
     let object = Style { hatch_space: HatchSpace::Hybrid, terrain_stroke_direction: terrain, ..base.clone() };
     let image = Style { hatch_space: HatchSpace::Image, terrain_stroke_direction: TerrainStrokes::Image, ..base };
-    let object: Flicker = flicker(&renderer, &object, &path, width, height)?;
-    let image: Flicker = flicker(&renderer, &image, &path, width, height)?;
+    let object_run = measure_path(&renderer, &object, &path, width, height)?;
+    let image_run = measure_path(&renderer, &image, &path, width, height)?;
+    if let Some(dir) = &output.frames {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for (name, run) in [("object", &object_run), ("image", &image_run)] {
+            for (i, frame) in run.frames.iter().enumerate() {
+                let file = dir.join(format!("{name}-{i:02}.png"));
+                frame.save(&file).with_context(|| format!("writing {}", file.display()))?;
+            }
+            for (i, map) in run.difference_maps.iter().enumerate() {
+                let file = dir.join(format!("{name}-difference-{:02}.png", i + 1));
+                map.save(&file).with_context(|| format!("writing {}", file.display()))?;
+            }
+        }
+    }
+    let (object, image): (Flicker, Flicker) = (object_run.flicker(), image_run.flicker());
     let pair = |a: f64, b: f64| serde_json::json!({ "object_space": a, "image_space": b });
-    if json {
+    if output.json {
+        // Per consecutive frame pair, so a figure can be traced to a part of the path.
+        let pairs: Vec<_> = object_run
+            .differences
+            .iter()
+            .zip(&image_run.differences)
+            .map(|(o, i)| {
+                serde_json::json!({
+                    "whole_frame": pair(o.mean(), i.mean()),
+                    "terrain": pair(o.terrain_mean(), i.terrain_mean()),
+                })
+            })
+            .collect();
         println!(
             "{}",
             serde_json::json!({
@@ -600,6 +640,7 @@ fn coherence(
                 "whole_frame": pair(object.whole_frame, image.whole_frame),
                 "terrain": pair(object.terrain, image.terrain),
                 "terrain_ink": pair(object.terrain_ink, image.terrain_ink),
+                "pairs": pairs,
             })
         );
     } else {
@@ -813,7 +854,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
         for run in &scene.styles {
             let passes: Vec<String> = run.passes_ms.iter().map(|(k, v)| format!("{k} {:.1}", v.median)).collect();
             println!(
-                "  {:<14} {:>6.1} ms ({:.1} fps, min {:.1}, max {:.1}); {} triangles = {:.2} % of source; {} plants {:?}; {} reference points; {}",
+                "  {:<14} {:>6.1} ms ({:.1} fps, min {:.1}, max {:.1}); {} triangles = {:.2} % of source; {} plants {:?} ({} visited); {} mass domes; {} reference points; {}",
                 run.style,
                 run.frame_ms.median,
                 run.fps,
@@ -823,6 +864,8 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 run.percent_drawn,
                 run.plants_drawn,
                 run.per_level,
+                run.plants_visited,
+                run.mass_domes,
                 run.reference_points,
                 passes.join(", ")
             );

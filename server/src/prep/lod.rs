@@ -5,7 +5,9 @@
 //! instead; other plants are never drawn smaller than `min_px`, so a lone tree far away stays a
 //! dot. The level follows the plant's projected height; in a band around each threshold both
 //! levels (or the plant and its mass) are drawn with complementary screen-door masks, so levels
-//! blend instead of popping.
+//! blend instead of popping. Budgets per frame (HLP clouds, plants of masses drawn as plants,
+//! plants outside masses) raise the thresholds when a dense forest would exceed them, so a
+//! frame's cost follows what is near, not the forest's density.
 //!
 //! This module builds the CPU side (geometry, atlas layout, level selection); the billboard
 //! textures are baked on the GPU by `render::bake`.
@@ -63,6 +65,17 @@ pub struct LodSettings {
     /// plants, so the nearest keep their detail and a dense forest in front of the eye
     /// costs what the budget does ([`LodSettings::within_budget`]); 0 = no limit.
     pub hlp_budget: u32,
+    /// At most about this many plants of vegetation masses are drawn as plants in a frame:
+    /// beyond it the mass band of that frame rises to the size of the budget's plants, so the
+    /// nearest of a dense forest stay billboards and the rest are drawn by their masses,
+    /// whatever the forest's density ([`LodSettings::within_budget`]); 0 = no limit. Lone
+    /// plants and hedgerows outside masses are not counted: they are always drawn.
+    pub billboard_budget: u32,
+    /// At most about this many plants outside masses (lone trees, hedgerows, the scattered
+    /// shrubs of open land) are drawn in a frame: beyond it the smallest on screen are left out
+    /// ([`LodSettings::lone_threshold`]), so far scattered shrubs are left to the ground's
+    /// drape while near plants and tall ones (a lone tree far away) stay; 0 = no limit.
+    pub lone_budget: u32,
     /// Draw every plant at this level (for tests and comparisons); `None` selects by size.
     pub force: Option<LodLevel>,
 }
@@ -77,6 +90,8 @@ impl Default for LodSettings {
             grid_px: 12.0,
             fade: 0.2,
             hlp_budget: 400,
+            billboard_budget: 2000,
+            lone_budget: 20000,
             force: None,
         }
     }
@@ -110,25 +125,49 @@ impl LodSettings {
         }
     }
 
-    /// These settings for a frame whose plants are `sizes` pixels tall: when more than
-    /// `hlp_budget` of them reach the HLP band, its threshold rises so that only the largest
-    /// `hlp_budget` do (the full-model threshold with it where it would fall below).
-    pub fn within_budget(&self, sizes: &[f32]) -> LodSettings {
-        let budget = self.hlp_budget as usize;
-        let lower_edge = self.hlp_px * (1.0 - self.fade);
-        if budget == 0 || self.force.is_some() {
+    /// These settings for a frame whose plants are `sizes` pixels tall (each with whether a
+    /// vegetation mass stands for it). When more than `billboard_budget` plants of masses are
+    /// larger than the mass band, the band rises so that only the largest `billboard_budget`
+    /// are (the HLP and full-model thresholds with it where they would fall below); then, when
+    /// more than `hlp_budget` plants reach the HLP band, its threshold rises so that only the
+    /// largest `hlp_budget` do. `sizes` may leave out plants of masses smaller than the
+    /// `billboard_budget + 1` largest of them: those are not drawn either way.
+    pub fn within_budget(&self, sizes: &[(f32, bool)]) -> LodSettings {
+        if self.force.is_some() {
             return *self;
         }
-        // Only the plants in the band are ordered (a few thousand of a forest's plants).
-        let mut in_band: Vec<f32> = sizes.iter().copied().filter(|&px| px > lower_edge).collect();
-        if in_band.len() <= budget {
-            return *self;
+        let mut framed = *self;
+        if self.masses() {
+            let lower_edge = self.mass_band().0;
+            let massed = sizes.iter().filter(|&&(px, massed)| massed && px > lower_edge).map(|&(px, _)| px);
+            if let Some(first_out) = first_beyond(massed, self.billboard_budget) {
+                framed.mass_px = first_out / (1.0 - self.fade);
+                let hlp_px = framed.mass_band().1 / (1.0 - self.fade);
+                framed.hlp_px = framed.hlp_px.max(hlp_px);
+                framed.full_px = framed.full_px.max(framed.hlp_px);
+            }
         }
-        // The largest plant beyond the budget: the band's lower edge moves to it, so only the
-        // larger ones reach the band.
-        let (_, &mut first_out, _) = in_band.select_nth_unstable_by(budget, |a, b| b.total_cmp(a));
-        let hlp_px = first_out / (1.0 - self.fade);
-        LodSettings { hlp_px, full_px: self.full_px.max(hlp_px), ..*self }
+        let lower_edge = framed.hlp_px * (1.0 - self.fade);
+        let in_band = sizes.iter().filter(|&&(px, _)| px > lower_edge).map(|&(px, _)| px);
+        if let Some(first_out) = first_beyond(in_band, self.hlp_budget) {
+            framed.hlp_px = first_out / (1.0 - self.fade);
+            framed.full_px = framed.full_px.max(framed.hlp_px);
+        }
+        framed
+    }
+
+    /// The size in pixels up to which a frame leaves out plants outside masses, when more than
+    /// `lone_budget` of `sizes` (as for [`LodSettings::within_budget`]) are such plants: the
+    /// largest of them beyond the budget, but never more than `min_px` (only plants that would
+    /// be enlarged to dots are left out: a lone tree a few pixels tall stays); 0 (none left
+    /// out) within the budget or with a forced level. `sizes` may leave out plants outside
+    /// masses smaller than the `lone_budget + 1` largest.
+    pub fn lone_threshold(&self, sizes: &[(f32, bool)]) -> f32 {
+        if self.force.is_some() {
+            return 0.0;
+        }
+        let lone = sizes.iter().filter(|&&(_, massed)| !massed).map(|&(px, _)| px);
+        first_beyond(lone, self.lone_budget).map_or(0.0, |px| px.min(self.min_px))
     }
 
     /// Whether plants far away are drawn by their vegetation masses (not when a level is forced).
@@ -197,6 +236,19 @@ impl LodSettings {
         }
         [all(LodLevel::Plant), None]
     }
+}
+
+/// The largest of `sizes` beyond the `budget` largest (the band's new lower edge), when there
+/// are more than `budget` of them and `budget` is not 0 (no limit). Only the sizes in a band
+/// are ordered: a few thousand of a forest's plants.
+fn first_beyond(sizes: impl Iterator<Item = f32>, budget: u32) -> Option<f32> {
+    let budget = budget as usize;
+    let mut sizes: Vec<f32> = sizes.collect();
+    if budget == 0 || sizes.len() <= budget {
+        return None;
+    }
+    let (_, &mut first_out, _) = sizes.select_nth_unstable_by(budget, |a, b| b.total_cmp(a));
+    Some(first_out)
 }
 
 /// The three billboard planes of a cross billboard: (right, up) axes in model space. The
@@ -380,22 +432,64 @@ mod tests {
     #[test]
     fn the_hlp_budget_keeps_the_largest_plants_detailed() {
         let s = LodSettings { hlp_budget: 3, ..LodSettings::default() };
-        let hlp = |settings: &LodSettings, sizes: &[f32]| {
+        let hlp = |settings: &LodSettings, sizes: &[(f32, bool)]| {
             sizes
                 .iter()
-                .filter(|&&px| settings.select(px, false).iter().flatten().any(|d| d.level != LodLevel::Plant))
+                .filter(|&&(px, _)| settings.select(px, false).iter().flatten().any(|d| d.level != LodLevel::Plant))
                 .count()
         };
+        let lone = |px: &[f32]| px.iter().map(|&px| (px, false)).collect::<Vec<_>>();
         // Within the budget nothing changes.
-        let few = [300.0, 100.0, 50.0, 10.0];
+        let few = lone(&[300.0, 100.0, 50.0, 10.0]);
         assert_eq!(s.within_budget(&few), s);
         // Ten plants in the HLP band: only the three largest keep more than a billboard, and the
         // full-model threshold stays above the HLP one.
-        let many: Vec<f32> = (0..10).map(|i| 200.0 - 15.0 * i as f32).chain([5.0, 2.0]).collect();
+        let many = lone(&(0..10).map(|i| 200.0 - 15.0 * i as f32).chain([5.0, 2.0]).collect::<Vec<_>>());
         let framed = s.within_budget(&many);
         assert_eq!(hlp(&framed, &many), 3, "{framed:?}");
         assert!(framed.full_px >= framed.hlp_px && framed.validate().is_ok());
         assert_eq!(hlp(&LodSettings { hlp_budget: 0, ..s }.within_budget(&many), &many), 10);
+    }
+
+    #[test]
+    fn the_billboard_budget_hands_a_dense_forest_to_its_masses() {
+        let s = LodSettings { billboard_budget: 100, ..LodSettings::default() };
+        let drawn = |settings: &LodSettings, sizes: &[(f32, bool)]| {
+            sizes.iter().filter(|&&(px, massed)| settings.select(px, massed)[0].is_some()).count()
+        };
+        // A forest of 1,000 plants of a mass from 120 px down to 12 px (all above the default
+        // mass band), and 50 lone trees as small.
+        let forest: Vec<(f32, bool)> = (0..1000).map(|i| (120.0 - 0.108 * i as f32, true)).collect();
+        let lone: Vec<(f32, bool)> = (0..50).map(|i| (12.0 + i as f32, false)).collect();
+        let sizes: Vec<(f32, bool)> = forest.iter().chain(&lone).copied().collect();
+        assert_eq!(drawn(&s, &sizes), 1050, "without the budget every plant is drawn");
+        let framed = s.within_budget(&sizes);
+        assert!(framed.validate().is_ok(), "{framed:?}");
+        assert_eq!(drawn(&framed, &forest), 100, "the largest 100 plants of the mass: {framed:?}");
+        assert_eq!(drawn(&framed, &lone), 50, "lone trees are not counted");
+        let (lo, _) = framed.mass_band();
+        assert!(forest[..100].iter().all(|&(px, _)| px > lo), "the nearest are the ones drawn");
+        // The HLP band stays above the mass band; within the budget nothing changes.
+        assert!(framed.hlp_px * (1.0 - framed.fade) >= framed.mass_band().1 - 1e-4);
+        assert_eq!(s.within_budget(&forest[..80]), s);
+        assert_eq!(LodSettings { billboard_budget: 0, ..s }.within_budget(&sizes).mass_px, s.mass_px, "no limit");
+    }
+
+    #[test]
+    fn the_lone_budget_keeps_the_largest_plants_outside_masses() {
+        let s = LodSettings { lone_budget: 3, ..LodSettings::default() };
+        let kept = |sizes: &[(f32, bool)]| -> Vec<f32> {
+            let cut = s.lone_threshold(sizes);
+            sizes.iter().filter(|&&(px, massed)| !massed && px > cut).map(|&(px, _)| px).collect()
+        };
+        let sizes = [(50.0, false), (0.5, false), (9.0, false), (0.2, false), (1.0, false), (30.0, true)];
+        assert_eq!(kept(&sizes), [50.0, 9.0, 1.0], "the three largest; the plant of a mass is not counted");
+        // Plants larger than a dot are kept beyond the budget: a lone tree far away stays.
+        let trees = [(50.0, false), (2.0, false), (9.0, false), (1.0, false), (4.0, false)];
+        assert_eq!(kept(&trees), [50.0, 2.0, 9.0, 4.0], "only the plant below min_px is left out");
+        assert_eq!(LodSettings { lone_budget: 5, ..s }.lone_threshold(&sizes), 0.0, "within the budget");
+        assert_eq!(LodSettings { lone_budget: 0, ..s }.lone_threshold(&sizes), 0.0, "no limit");
+        assert_eq!(LodSettings { force: Some(LodLevel::Plant), ..s }.lone_threshold(&sizes), 0.0);
     }
 
     #[test]

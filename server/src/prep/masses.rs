@@ -19,9 +19,14 @@ pub const MASS_CELL: f32 = 10.0;
 const MIN_COVER: f32 = 0.1;
 /// Plants a cell needs to join a mass: a lone tree stays a tree (drawn as a dot far away).
 const MIN_PLANTS: u32 = 2;
-/// Rings from the top of a dome to its base, and segments around it.
+/// Rings from the top of a dome to its base at level 0 (one fewer per coarser level: a dome
+/// a few pixels wide needs no more), and segments around it.
 const RINGS: usize = 3;
 const SEGMENTS: usize = 6;
+/// How much larger than the region of its level-0 cells a merged cell's dome is at least.
+const MERGED_OVERLAP: f32 = 1.15;
+/// The least height of a dome of a merged level, in its minor semi-axes.
+const MERGED_DOME_RISE: f32 = 0.5;
 /// How far a dome's base reaches below the mean ground of its plants (metres), so it stands
 /// in sloping ground instead of floating over it.
 const SKIRT: f32 = 1.5;
@@ -59,6 +64,79 @@ pub struct MassCell {
     pub color: [f32; 3],
     /// Cells to the mass's edge: 1 for a cell next to open ground, 2 for the next ring in.
     pub depth: u32,
+    /// Where in a merged cell ([`coarsen`]) its level-0 cells lie: the ellipse of their
+    /// second moments; `None` for a level-0 cell (its dome stands on the whole cell).
+    pub footprint: Option<Footprint>,
+}
+
+/// The ellipse with the second moments of a set of level-0 cells (scene metres): a merged
+/// cell's dome stands on it, so a narrow wood or a hedge merged into wide cells keeps its
+/// shape (a band stays a band, a wood's edge does not grow into its neighbour's field), as
+/// Campos et al. (2004) fit substitution shapes to their branches' leaves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Footprint {
+    /// Centre (x, y).
+    pub center: [f32; 2],
+    /// Semi-axes: the major first, along `direction`, then the minor.
+    pub half_axes: [f32; 2],
+    /// Unit vector of the major axis.
+    pub direction: [f32; 2],
+    /// The mean crown cover of its level-0 cells.
+    pub cover: f32,
+    /// The slope (∂z/∂x, ∂z/∂y) of the plane fitted to its cells' ground: the dome's base lies
+    /// on it, so a wide dome on a hillside neither sinks into the slope above it nor floats
+    /// over the slope below.
+    pub slope: [f32; 2],
+}
+
+impl Footprint {
+    /// The ellipse of the cells whose centres have these sums: count `n`, Σx, Σy, Σx², Σxy,
+    /// Σy² (metres), each cell a square of side `cell`: a uniform ellipse of semi-axis a has the
+    /// variance a²/4 along it, a square of side s the variance s²/12.
+    /// `origin` is the point the sums were taken from (the merged cell's corner, so the sums
+    /// stay small), `cover` the cells' summed cover, `ground` the sums Σz, Σxz, Σyz of their
+    /// ground heights.
+    fn of_moments(
+        n: f32,
+        [sx, sy, sxx, sxy, syy]: [f32; 5],
+        cell: f32,
+        origin: Vec2,
+        cover: f32,
+        [sz, sxz, syz]: [f32; 3],
+    ) -> Footprint {
+        let (mx, my) = (sx / n, sy / n);
+        let own = cell * cell / 12.0;
+        // The ground plane by least squares over the cells' centres: the centres' covariance
+        // times the slope is their covariance with the height (none for fewer than 3 cells or
+        // cells in a line: level).
+        let (cxx, cxy, cyy) = (sxx / n - mx * mx, sxy / n - mx * my, syy / n - my * my);
+        let (cxz, cyz) = (sxz / n - mx * sz / n, syz / n - my * sz / n);
+        let det = cxx * cyy - cxy * cxy;
+        let slope = if det > 1e-3 * (cell * cell).powi(2) {
+            [(cyy * cxz - cxy * cyz) / det, (cxx * cyz - cxy * cxz) / det]
+        } else {
+            [0.0, 0.0]
+        };
+        let (vxx, vxy, vyy) = (cxx + own, cxy, cyy + own);
+        // Eigenvalues and the major eigenvector of the 2 × 2 covariance.
+        let half_trace = 0.5 * (vxx + vyy);
+        let root = (0.25 * (vxx - vyy) * (vxx - vyy) + vxy * vxy).sqrt();
+        let (major, minor) = (half_trace + root, (half_trace - root).max(own));
+        let direction = if vxy.abs() > 1e-6 {
+            Vec2::new(major - vyy, vxy).normalize()
+        } else if vxx >= vyy {
+            Vec2::X
+        } else {
+            Vec2::Y
+        };
+        Footprint {
+            center: (origin + Vec2::new(mx, my)).to_array(),
+            half_axes: [2.0 * major.sqrt(), 2.0 * minor.sqrt()],
+            direction: direction.to_array(),
+            cover: cover / n,
+            slope,
+        }
+    }
 }
 
 /// The masses of one set of plants.
@@ -106,6 +184,7 @@ pub fn group(plants: &[MassPlant]) -> Masses {
                 cover,
                 color: (s.color / s.area).to_array(),
                 depth: 0,
+                footprint: None,
             })
         })
         .collect();
@@ -116,6 +195,82 @@ pub fn group(plants: &[MassPlant]) -> Masses {
     }
     let massed = plants.iter().map(|p| depths.contains_key(&key_of(p.position[0], p.position[1]))).collect();
     Masses { cells, massed }
+}
+
+/// Levels of detail of the masses: level `l` has cells of `MASS_CELL · 2^l` metres, so far
+/// away a forest costs a quarter of the domes per level while its domes stay a few pixels
+/// wide on screen.
+pub const MASS_LEVELS: usize = 3;
+
+/// The cells of `cells` (level 0, [`MASS_CELL`]) merged into cells `factor` times as wide: a
+/// coarse cell's ground is the mean of its cells', its height, colour and cover their
+/// cover-weighted means and sum (over the coarse cell's area), and its edge depth counted
+/// again in coarse cells.
+pub fn coarsen(cells: &[MassCell], factor: i64) -> Vec<MassCell> {
+    if factor <= 1 {
+        return cells.to_vec();
+    }
+    #[derive(Default)]
+    struct Sum {
+        count: u32,
+        cover: f32,
+        ground: f32,
+        height: f32,
+        color: Vec3,
+        /// Σx, Σy, Σx², Σxy, Σy² of the cells' centres.
+        moments: [f32; 5],
+        /// Σz, Σxz, Σyz of their ground heights (relative to the first cell's).
+        heights: [f32; 3],
+        /// The ground height the heights are relative to.
+        datum: Option<f32>,
+    }
+    let mut sums: HashMap<(i64, i64), Sum> = HashMap::new();
+    for c in cells {
+        let s = sums.entry((c.key.0.div_euclid(factor), c.key.1.div_euclid(factor))).or_default();
+        s.count += 1;
+        s.cover += c.cover;
+        s.ground += c.ground;
+        s.height += c.cover * c.height;
+        s.color += c.cover * Vec3::from(c.color);
+        // Relative to the merged cell's corner.
+        let (x, y) = (
+            (c.key.0.rem_euclid(factor) as f32 + 0.5) * MASS_CELL,
+            (c.key.1.rem_euclid(factor) as f32 + 0.5) * MASS_CELL,
+        );
+        for (sum, v) in s.moments.iter_mut().zip([x, y, x * x, x * y, y * y]) {
+            *sum += v;
+        }
+        let z = c.ground - *s.datum.get_or_insert(c.ground);
+        for (sum, v) in s.heights.iter_mut().zip([z, x * z, y * z]) {
+            *sum += v;
+        }
+    }
+    let area = (factor * factor) as f32;
+    let mut coarse: Vec<MassCell> = sums
+        .into_iter()
+        .map(|(key, s)| MassCell {
+            key,
+            ground: s.ground / s.count as f32,
+            height: s.height / s.cover,
+            cover: s.cover / area,
+            color: (s.color / s.cover).to_array(),
+            depth: 0,
+            footprint: Some(Footprint::of_moments(
+                s.count as f32,
+                s.moments,
+                MASS_CELL,
+                Vec2::new(key.0 as f32, key.1 as f32) * factor as f32 * MASS_CELL,
+                s.cover,
+                s.heights,
+            )),
+        })
+        .collect();
+    coarse.sort_by_key(|c| c.key);
+    let depths = edge_depths(&coarse);
+    for cell in &mut coarse {
+        cell.depth = depths[&cell.key];
+    }
+    coarse
 }
 
 /// The 8 neighbours of a cell.
@@ -165,26 +320,55 @@ pub struct DomeMesh {
     pub indices: Vec<u32>,
 }
 
+/// The radius of a level-0 dome in cell widths for a cell of crown `cover`: about the crowns'
+/// area, overlapping the neighbours' domes from a cover of about half.
+fn crown_share(cover: f32) -> f32 {
+    ((cover / std::f32::consts::PI).sqrt() * 1.2).clamp(0.3, 0.7)
+}
+
 /// Builds one dome per cell of `cells` (all from `all`, which holds every mass cell of the
-/// same plants, for the neighbours): an ellipsoid cap over the cell at the cell's height,
+/// same plants and `level`, for the neighbours; cells [`cell_size`] wide): an ellipsoid cap
+/// over the cell at the cell's height,
 /// its area about that of the crowns, its centre jittered within the cell so the scallops of
 /// a mass's outline do not line up with the grid.
-pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>) -> DomeMesh {
+pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>, level: usize) -> DomeMesh {
+    let size = cell_size(level);
+    let rings = dome_rings(level);
     let mut mesh = DomeMesh::default();
     for (index, cell) in cells.iter().enumerate() {
         let (i, j) = cell.key;
-        let mut rng = SplitMix64::new(mix(i as u64 ^ mix(j as u64)));
-        let jitter = Vec2::new(rng.range(-0.15, 0.15), rng.range(-0.15, 0.15)) * MASS_CELL;
-        let center = (Vec2::new(i as f32, j as f32) + 0.5) * MASS_CELL + jitter;
-        // About the crowns' area (a sparse cell stays a small dome), overlapping the
-        // neighbours' domes from a cover of about half.
-        let radius =
-            MASS_CELL * ((cell.cover / std::f32::consts::PI).sqrt() * 1.2).clamp(0.3, 0.7) * rng.range(0.9, 1.1);
+        // The dome's base: a level-0 cell's circle about the crowns' area (a sparse cell stays
+        // a small dome), overlapping the neighbours' domes from a cover of about half, its
+        // centre jittered; a merged cell's ellipse over its level-0 cells, as much larger
+        // than their region as a level-0 dome is than its cell (at their mean cover) and large
+        // enough to overlap its neighbours, so a wood or a band stays unbroken.
+        let slope = cell.footprint.map_or(Vec2::ZERO, |f| Vec2::from(f.slope));
+        let (center, half_axes, major) = match cell.footprint {
+            None => {
+                let mut rng = SplitMix64::new(mix(i as u64 ^ mix(j as u64)));
+                let jitter = Vec2::new(rng.range(-0.15, 0.15), rng.range(-0.15, 0.15)) * size;
+                let radius = size * crown_share(cell.cover) * rng.range(0.9, 1.1);
+                ((Vec2::new(i as f32, j as f32) + 0.5) * size + jitter, Vec2::splat(radius), Vec2::X)
+            }
+            Some(f) => {
+                // A level-0 dome's radius against the circle of its cell's area, but at least
+                // MERGED_OVERLAP: level-0 domes a few pixels wide read as a closed canopy
+                // whatever the gaps between them, so merged domes close them too.
+                let grow = (crown_share(f.cover) * std::f32::consts::PI.sqrt()).max(MERGED_OVERLAP);
+                let [a, b] = f.half_axes;
+                (Vec2::from(f.center), Vec2::new(a, b) * grow, Vec2::from(f.direction))
+            }
+        };
+        let minor_axis = major.perp();
         let base = cell.ground - SKIRT;
-        let half_height = (cell.height + SKIRT).max(0.5);
+        // A merged cell's dome rises at least MERGED_DOME_RISE of its minor semi-axis above its
+        // base, so a low wood drawn by wide, flat domes is not lost in the coarser levels of
+        // the terrain under it.
+        let least_height = if level > 0 { MERGED_DOME_RISE * half_axes.y } else { 0.5 };
+        let half_height = (cell.height + SKIRT).max(least_height);
         // The canopy's slope from the neighbours' crown tops (open ground counts as ground).
         let top = |di: i64, dj: i64| all.get(&(i + di, j + dj)).map_or(cell.ground, |c| c.ground + c.height);
-        let gradient = Vec2::new(top(1, 0) - top(-1, 0), top(0, 1) - top(0, -1)) / (2.0 * MASS_CELL);
+        let gradient = Vec2::new(top(1, 0) - top(-1, 0), top(0, 1) - top(0, -1)) / (2.0 * size);
         let canopy = Vec3::new(-gradient.x, -gradient.y, 1.0).normalize();
         // Directions towards open neighbours: the dome's outer side, where the mass has its edge.
         let open: Vec<Vec2> = NEIGHBOURS
@@ -195,21 +379,30 @@ pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>) -> Dom
         let first = mesh.positions.len() as u32;
         let mut vertex = |theta: f32, phi: f32| {
             let (sin_t, cos_t) = theta.sin_cos();
-            let dir = Vec2::from_angle(phi);
-            let p = center + dir * (radius * sin_t);
-            mesh.positions.push([p.x, p.y, base + half_height * cos_t]);
-            let dome = Vec3::new(dir.x * sin_t / radius, dir.y * sin_t / radius, cos_t / half_height).normalize();
+            let (cos_p, sin_p) = (phi.cos(), phi.sin());
+            // The base ellipse's point at angle phi, and the ellipsoid's gradient there
+            // (x/a², y/b², z/h²), both from the ellipse's axes to the scene's.
+            let rim = major * (half_axes.x * cos_p) + minor_axis * (half_axes.y * sin_p);
+            let p = center + rim * sin_t;
+            // The dome sheared onto the ground's plane (z += slope · offset), its normal by the
+            // shear's inverse transpose.
+            mesh.positions.push([p.x, p.y, base + slope.dot(rim * sin_t) + half_height * cos_t]);
+            let across = major * (cos_p / half_axes.x) + minor_axis * (sin_p / half_axes.y);
+            let n_z = cos_t / half_height;
+            let dome = (across * sin_t - slope * n_z).extend(n_z).normalize();
             mesh.normals.push((dome * DOME_NORMAL_SHARE + canopy * (1.0 - DOME_NORMAL_SHARE)).normalize().to_array());
-            // Outward vertices of an edge cell lie their distance from the base circle inside
+            // Outward vertices of an edge cell lie their distance from the base ellipse inside
             // the mass, the rest of a cell half a cell more, and each ring of cells in one more.
+            let dir = rim.normalize_or_zero();
+            let radius = rim.length();
             let outward = open.iter().any(|o| o.dot(dir) > 0.3);
-            let own = if outward { radius * (1.0 - sin_t) } else { 0.5 * (MASS_CELL + radius * (1.0 - sin_t)) };
-            mesh.edge.push((cell.depth.max(1) - 1) as f32 * MASS_CELL + own);
+            let own = if outward { radius * (1.0 - sin_t) } else { 0.5 * (size + radius * (1.0 - sin_t)) };
+            mesh.edge.push((cell.depth.max(1) - 1) as f32 * size + own);
             mesh.cell.push(index as u32);
         };
         vertex(0.0, 0.0);
-        for ring in 1..=RINGS {
-            let theta = std::f32::consts::FRAC_PI_2 * ring as f32 / RINGS as f32;
+        for ring in 1..=rings {
+            let theta = std::f32::consts::FRAC_PI_2 * ring as f32 / rings as f32;
             for s in 0..SEGMENTS {
                 vertex(theta, std::f32::consts::TAU * (s as f32 + 0.5 * (ring % 2) as f32) / SEGMENTS as f32);
             }
@@ -218,7 +411,7 @@ pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>) -> Dom
         for s in 0..SEGMENTS {
             mesh.indices.extend([first, at(1, s), at(1, s + 1)]);
         }
-        for ring in 1..RINGS {
+        for ring in 1..rings {
             for s in 0..SEGMENTS {
                 // Odd rings are turned by half a segment: the quads become a triangle strip
                 // between staggered rings.
@@ -234,8 +427,20 @@ pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>) -> Dom
     mesh
 }
 
-/// Triangles of one dome.
-pub const DOME_TRIANGLES: u64 = (SEGMENTS * (2 * RINGS - 1)) as u64;
+/// The width of a cell of the masses at `level` (metres).
+pub fn cell_size(level: usize) -> f32 {
+    MASS_CELL * (1_u32 << level) as f32
+}
+
+/// The rings of a dome at `level`.
+fn dome_rings(level: usize) -> usize {
+    RINGS.saturating_sub(level).max(1)
+}
+
+/// Triangles of one dome at `level`.
+pub fn dome_triangles(level: usize) -> u64 {
+    (SEGMENTS * (2 * dome_rings(level) - 1)) as u64
+}
 
 #[cfg(test)]
 mod tests {
@@ -266,15 +471,87 @@ mod tests {
             (0..10).flat_map(|i| (0..5).map(move |j| plant(i as f32 * 4.0 + 1.0, j as f32 * 4.0 + 1.0))).collect();
         let masses = group(&plants);
         let all: HashMap<_, _> = masses.cells.iter().map(|c| (c.key, *c)).collect();
-        let mesh = dome_mesh(&masses.cells, &all);
+        let mesh = dome_mesh(&masses.cells, &all, 0);
         let per_dome = 1 + RINGS * SEGMENTS;
         assert_eq!(mesh.positions.len(), per_dome * masses.cells.len());
-        assert_eq!(mesh.indices.len() as u64, 3 * DOME_TRIANGLES * masses.cells.len() as u64);
+        assert_eq!(mesh.indices.len() as u64, 3 * dome_triangles(0) * masses.cells.len() as u64);
         let top = mesh.positions.iter().map(|p| p[2]).fold(f32::MIN, f32::max);
         assert!((top - 112.0).abs() < 1e-3, "the domes reach the crowns' height: {top}");
         assert!(mesh.normals.iter().all(|n| n[2] > 0.0), "normals face up and out");
         // Every dome's base touches the mass edge only where it faces open ground.
         assert!(mesh.edge.iter().any(|e| *e < 1e-3) && mesh.edge.iter().any(|e| *e > 3.0));
         assert!(mesh.indices.iter().all(|&i| (i as usize) < mesh.positions.len()));
+    }
+
+    #[test]
+    fn a_merged_dome_keeps_the_shape_of_its_cells() {
+        // A hedge of small plants 4 m apart along y = 1: one row of level-0 cells of low cover.
+        let hedge: Vec<MassPlant> =
+            (0..60).map(|i| MassPlant { crown_radius: 1.0, height: 3.0, ..plant(i as f32 * 4.0 + 1.0, 1.0) }).collect();
+        let fine = group(&hedge).cells;
+        for level in 1..MASS_LEVELS {
+            let coarse = coarsen(&fine, 1 << level);
+            let all: HashMap<_, _> = coarse.iter().map(|c| (c.key, *c)).collect();
+            let size = cell_size(level);
+            for cell in coarse.iter().filter(|c| c.key.0 > 0 && c.key.0 < 5) {
+                let mesh = dome_mesh(std::slice::from_ref(cell), &all, level);
+                let extent = |axis: usize| {
+                    let values = mesh.positions.iter().map(|p| p[axis]);
+                    values.clone().fold(f32::MIN, f32::max) - values.fold(f32::MAX, f32::min)
+                };
+                // Along the hedge the domes overlap (no gaps); across it a dome is about as
+                // wide as the hedge's cells, not as its merged cell (the field beside the hedge
+                // stays open).
+                assert!(extent(0) >= size, "level {level}: {} m along a {size} m cell: {cell:?}", extent(0));
+                assert!(extent(1) < 0.5 * size.max(2.0 * MASS_CELL), "level {level}: {} m across", extent(1));
+            }
+        }
+    }
+
+    #[test]
+    fn a_merged_dome_on_a_slope_stands_on_it() {
+        // A block of forest on ground rising 0.5 m per metre eastwards.
+        let slope = 0.5;
+        let plants: Vec<MassPlant> = (0..20)
+            .flat_map(|i| (0..20).map(move |j| (i as f32 * 4.0 + 1.0, j as f32 * 4.0 + 1.0)))
+            .map(|(x, y)| MassPlant { position: [x, y, 100.0 + slope * x], ..plant(x, y) })
+            .collect();
+        let coarse = coarsen(&group(&plants).cells, 4);
+        let all: HashMap<_, _> = coarse.iter().map(|c| (c.key, *c)).collect();
+        let footprint = coarse[0].footprint.expect("a merged cell has a footprint");
+        assert!((footprint.slope[0] - slope).abs() < 0.05 && footprint.slope[1].abs() < 0.05, "{footprint:?}");
+        let mesh = dome_mesh(&coarse[..1], &all, 2);
+        // The base ring lies SKIRT below the ground under it on both sides of the dome.
+        let rings = dome_rings(2);
+        for p in &mesh.positions[1 + (rings - 1) * SEGMENTS..] {
+            let ground = 100.0 + slope * p[0];
+            assert!((p[2] - (ground - SKIRT)).abs() < 1.5, "base vertex {p:?} against the ground {ground}");
+        }
+    }
+
+    #[test]
+    fn coarser_levels_merge_cells_and_keep_the_forest() {
+        let plants: Vec<MassPlant> =
+            (0..20).flat_map(|i| (0..20).map(move |j| plant(i as f32 * 4.0 + 1.0, j as f32 * 4.0 + 1.0))).collect();
+        let fine = group(&plants).cells;
+        let coarse = coarsen(&fine, 2);
+        assert_eq!((fine.len(), coarse.len()), (64, 16), "80 m of forest: 8 × 8 cells, then 4 × 4");
+        assert_eq!(coarsen(&fine, 1), fine);
+        let mean_cover = fine.iter().map(|c| c.cover).sum::<f32>() / fine.len() as f32;
+        for c in &coarse {
+            assert!((c.height - 12.0).abs() < 1e-3 && (c.ground - 100.0).abs() < 1e-3, "{c:?}");
+            assert!((c.cover - mean_cover).abs() < 0.05, "a full block keeps its cover: {c:?}");
+        }
+        let depth = |key| coarse.iter().find(|c| c.key == key).map(|c| c.depth);
+        assert_eq!((depth((0, 0)), depth((1, 1)), depth((3, 3))), (Some(1), Some(2), Some(1)));
+        // A coarse dome is as much wider as its cell, and as high.
+        let all: HashMap<_, _> = coarse.iter().map(|c| (c.key, *c)).collect();
+        let mesh = dome_mesh(&coarse[..1], &all, 1);
+        assert_eq!(mesh.indices.len() as u64, 3 * dome_triangles(1));
+        let xs = mesh.positions.iter().map(|p| p[0]);
+        let width = xs.clone().fold(f32::MIN, f32::max) - xs.fold(f32::MAX, f32::min);
+        assert!(width > MASS_CELL, "a 20 m cell's dome is wider than a 10 m cell: {width}");
+        let top = mesh.positions.iter().map(|p| p[2]).fold(f32::MIN, f32::max);
+        assert!((top - 112.0).abs() < 1e-3, "{top}");
     }
 }

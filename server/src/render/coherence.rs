@@ -47,6 +47,20 @@ fn luminance(p: &image::Rgba<u8>) -> f32 {
     (0.2126 * f32::from(p[0]) + 0.7152 * f32::from(p[1]) + 0.0722 * f32::from(p[2])) / 255.0
 }
 
+/// The luminance of `image` at the sub-pixel position (`x`, `y`) (pixel centres at whole
+/// numbers), interpolated bilinearly between the four nearest pixels.
+fn bilinear_luminance(image: &image::RgbaImage, x: f32, y: f32) -> f32 {
+    let (w, h) = image.dimensions();
+    let (x, y) = (x.clamp(0.0, (w - 1) as f32), y.clamp(0.0, (h - 1) as f32));
+    let (x0, y0) = (x.floor() as u32, y.floor() as u32);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+    let l = |x, y| luminance(image.get_pixel(x, y));
+    let top = l(x0, y0) * (1.0 - fx) + l(x1, y0) * fx;
+    let bottom = l(x0, y1) * (1.0 - fx) + l(x1, y1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
 /// World position of pixel `(x, y)` at linear depth `depth` seen by `camera`.
 fn unproject(camera: &Camera, x: f32, y: f32, depth: f32, width: u32, height: u32) -> Vec3 {
     let tan = (camera.fov.to_radians() * 0.5).tan();
@@ -109,43 +123,75 @@ impl Difference {
     }
 }
 
-/// Absolute luminance differences between `current` and `previous` after reprojecting each of
-/// the current frame's geometry pixels into the previous frame; pixels that were hidden or
-/// outside the previous frame (depth mismatch over 2 %) are skipped. Terrain pixels (by the
-/// current frame's object IDs) are also summed on their own.
-pub fn compensated_difference(previous: &MeasuredFrame, current: &MeasuredFrame) -> Difference {
+/// One pixel compared by [`compensated_pixels`].
+struct ComparedPixel {
+    x: u32,
+    y: u32,
+    /// The absolute luminance difference to the previous frame.
+    difference: f64,
+    /// Whether the pixel shows the terrain (by the current frame's object IDs).
+    terrain: bool,
+}
+
+/// The current frame's geometry pixels, each reprojected into the previous frame through its
+/// depth, with the absolute difference of its luminance to the previous frame's there
+/// (interpolated bilinearly at the reprojected position); pixels that were hidden or outside
+/// the previous frame (depth mismatch over 2 %) are skipped.
+fn compensated_pixels<'a>(
+    previous: &'a MeasuredFrame<'a>,
+    current: &'a MeasuredFrame<'a>,
+) -> impl Iterator<Item = ComparedPixel> + 'a {
     let (w, h) = current.image.dimensions();
+    (0..h).flat_map(move |y| (0..w).map(move |x| (x, y))).filter_map(move |(x, y)| {
+        let index = (y * w + x) as usize;
+        let depth = current.depth[index];
+        if f64::from(depth) >= BACKGROUND_DEPTH * 0.5 {
+            return None;
+        }
+        let world = unproject(current.camera, x as f32, y as f32, depth, w, h);
+        let (px, py, pd) = project(previous.camera, world, w, h)?;
+        let (qx, qy) = (px.round(), py.round());
+        if qx < 0.0 || qy < 0.0 || qx >= w as f32 || qy >= h as f32 {
+            return None;
+        }
+        let previous_depth = previous.depth[(qy as u32 * w + qx as u32) as usize];
+        if (previous_depth - pd).abs() > 0.02 * pd {
+            return None;
+        }
+        let a = luminance(current.image.get_pixel(x, y));
+        let b = bilinear_luminance(previous.image, px, py);
+        let terrain = current.ids.get(index).is_some_and(|id| LayerCode::of_object_id(*id) == LayerCode::TERRAIN);
+        Some(ComparedPixel { x, y, difference: f64::from((a - b).abs()), terrain })
+    })
+}
+
+/// Absolute luminance differences between `current` and `previous` after reprojecting each of
+/// the current frame's geometry pixels into the previous frame ([`compensated_pixels`]).
+/// Terrain pixels (by the current frame's object IDs) are also summed on their own.
+pub fn compensated_difference(previous: &MeasuredFrame, current: &MeasuredFrame) -> Difference {
     let mut diff = Difference::default();
-    for y in 0..h {
-        for x in 0..w {
-            let index = (y * w + x) as usize;
-            let depth = current.depth[index];
-            if f64::from(depth) >= BACKGROUND_DEPTH * 0.5 {
-                continue;
-            }
-            let world = unproject(current.camera, x as f32, y as f32, depth, w, h);
-            let Some((px, py, pd)) = project(previous.camera, world, w, h) else { continue };
-            let (qx, qy) = (px.round(), py.round());
-            if qx < 0.0 || qy < 0.0 || qx >= w as f32 || qy >= h as f32 {
-                continue;
-            }
-            let (qx, qy) = (qx as u32, qy as u32);
-            let previous_depth = previous.depth[(qy * w + qx) as usize];
-            if (previous_depth - pd).abs() > 0.02 * pd {
-                continue;
-            }
-            let a = luminance(current.image.get_pixel(x, y));
-            let b = luminance(previous.image.get_pixel(qx, qy));
-            let d = f64::from((a - b).abs());
-            diff.sum += d;
-            diff.count += 1;
-            if current.ids.get(index).is_some_and(|id| LayerCode::of_object_id(*id) == LayerCode::TERRAIN) {
-                diff.terrain_sum += d;
-                diff.terrain_count += 1;
-            }
+    for pixel in compensated_pixels(previous, current) {
+        diff.sum += pixel.difference;
+        diff.count += 1;
+        if pixel.terrain {
+            diff.terrain_sum += pixel.difference;
+            diff.terrain_count += 1;
         }
     }
     diff
+}
+
+/// The motion-compensated difference of `current` to `previous` as an image: white where the
+/// pixels agree (or were not compared), darker the more they differ (a difference of 0.5 or
+/// more is black), to see where flicker comes from.
+pub fn difference_map(previous: &MeasuredFrame, current: &MeasuredFrame) -> image::GrayImage {
+    let (w, h) = current.image.dimensions();
+    let mut map = image::GrayImage::from_pixel(w, h, image::Luma([255]));
+    for pixel in compensated_pixels(previous, current) {
+        let dark = (pixel.difference * 2.0 * 255.0).min(255.0) as u8;
+        map.put_pixel(pixel.x, pixel.y, image::Luma([255 - dark]));
+    }
+    map
 }
 
 /// The flicker figures of one style along a camera path.
@@ -161,17 +207,41 @@ pub struct Flicker {
     pub terrain_ink: f64,
 }
 
-/// What rendering `style` along a camera path measured: the motion-compensated difference
-/// ([`compensated_difference`]) of every consecutive frame pair, and the first frame's terrain
-/// ink share ([`terrain_ink_share`]).
-struct PathMeasurement {
-    differences: Vec<Difference>,
-    terrain_ink: f64,
+/// What rendering a style along a camera path measured: the motion-compensated difference
+/// ([`compensated_difference`]) of every consecutive frame pair, the first frame's terrain
+/// ink share ([`terrain_ink_share`]) and the frames themselves (to look at where a figure
+/// comes from: `landsketch coherence --frames`).
+pub struct PathMeasurement {
+    /// The difference of each consecutive frame pair, in the path's order.
+    pub differences: Vec<Difference>,
+    /// The share of the first frame's terrain pixels more ink than paper.
+    pub terrain_ink: f64,
+    /// The rendered frames, in the path's order.
+    pub frames: Vec<image::RgbaImage>,
+    /// The difference map of each consecutive frame pair ([`difference_map`]), in the path's
+    /// order.
+    pub difference_maps: Vec<image::GrayImage>,
+}
+
+impl PathMeasurement {
+    /// The flicker figures: the means over consecutive frame pairs of the whole-frame and the
+    /// terrain-only differences (pairs that share such pixels).
+    pub fn flicker(&self) -> Flicker {
+        let mean = |values: Vec<f64>| {
+            if values.is_empty() { 0.0 } else { values.iter().sum::<f64>() / values.len() as f64 }
+        };
+        let d = &self.differences;
+        Flicker {
+            whole_frame: mean(d.iter().filter(|d| d.count > 0).map(Difference::mean).collect()),
+            terrain: mean(d.iter().filter(|d| d.terrain_count > 0).map(Difference::terrain_mean).collect()),
+            terrain_ink: self.terrain_ink,
+        }
+    }
 }
 
 /// Renders `style` along `path` with one view state, so the hybrid hatching follows the camera,
 /// and measures every consecutive frame pair.
-fn measure_path(
+pub fn measure_path(
     renderer: &Renderer,
     style: &Style,
     path: &[Camera],
@@ -181,6 +251,8 @@ fn measure_path(
     let mut state = renderer.new_view_state();
     let mut previous: Option<(Camera, image::RgbaImage, Vec<f32>, Vec<u32>)> = None;
     let mut differences = Vec::with_capacity(path.len());
+    let mut frames = Vec::with_capacity(path.len());
+    let mut difference_maps = Vec::with_capacity(path.len());
     let mut terrain_ink = None;
     for camera in path {
         let request = FrameRequest::new(camera, style, width, height).history(&mut state);
@@ -192,10 +264,12 @@ fn measure_path(
             let before = MeasuredFrame { camera: prev_cam, image: prev_image, depth: prev_depth, ids: prev_ids };
             let now = MeasuredFrame { camera, image: &frame.image, depth: &depth, ids: &ids };
             differences.push(compensated_difference(&before, &now));
+            difference_maps.push(difference_map(&before, &now));
         }
+        frames.push(frame.image.clone());
         previous = Some((*camera, frame.image, depth, ids));
     }
-    Ok(PathMeasurement { differences, terrain_ink: terrain_ink.unwrap_or(0.0) })
+    Ok(PathMeasurement { differences, terrain_ink: terrain_ink.unwrap_or(0.0), frames, difference_maps })
 }
 
 /// The whole-frame difference of every consecutive frame pair of `style` along `path` that
@@ -220,15 +294,7 @@ pub fn flicker(
     width: u32,
     height: u32,
 ) -> Result<Flicker, RenderError> {
-    let measured = measure_path(renderer, style, path, width, height)?;
-    let mean =
-        |values: Vec<f64>| if values.is_empty() { 0.0 } else { values.iter().sum::<f64>() / values.len() as f64 };
-    let d = &measured.differences;
-    Ok(Flicker {
-        whole_frame: mean(d.iter().filter(|d| d.count > 0).map(Difference::mean).collect()),
-        terrain: mean(d.iter().filter(|d| d.terrain_count > 0).map(Difference::terrain_mean).collect()),
-        terrain_ink: measured.terrain_ink,
-    })
+    Ok(measure_path(renderer, style, path, width, height)?.flicker())
 }
 
 /// The share of the terrain pixels of `image` (by the object IDs `ids`) more ink than paper:

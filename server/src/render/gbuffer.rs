@@ -415,8 +415,10 @@ pub struct Instance {
     /// `mask[0]..mask[1]` are drawn (`[0, 1]`: all).
     pub mask: [f32; 2],
     /// A data layer's HLP abstraction for this plant and the weight it replaces the style's
-    /// with (D3 `abstraction`; `[0, 0]`: the style's). The shader reads it with `mask` as one
-    /// vec4 (location 9): every vertex location is taken.
+    /// with (D3 `abstraction`; `[0, 0]`: the style's). For a chunk of vegetation masses, the
+    /// screen-door window of its level of detail instead: pixels whose dither value lies in
+    /// `[0]..[1]` are drawn (two levels blend in complementary windows). The shader reads it
+    /// with `mask` as one vec4 (location 9): every vertex location is taken.
     pub data_abstraction: [f32; 2],
     /// A far reference point standing in for the plant's own HLP sphere in the hatching and
     /// silhouette parametrizations (world centre, radius; radius 0: the plant's own, thesis 7.3).

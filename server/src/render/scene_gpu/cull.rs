@@ -3,6 +3,7 @@
 //! levels, and the hatching reference points (thesis 7.3) the instances index.
 
 use super::batch::{Batch, BatchKey, Runs, Share};
+use super::clusters::ClusterView;
 use super::masses::{MassDraw, MassView};
 use super::{LEVELS, Plant, SceneGpu, SpeciesGpu};
 use crate::prep::hlp::Sphere;
@@ -28,6 +29,9 @@ pub struct DrawStats {
     pub plants: u64,
     /// Plants inside the view frustum and large enough to draw.
     pub plants_drawn: u64,
+    /// Plants culling looked at one by one: those of the plant clusters it opened
+    /// (`scene_gpu::clusters`), which follow what is near, not the scene's plant count.
+    pub plants_visited: u64,
     /// Plant draws per level of detail (full, HLP billboards, plant billboard); a plant in a
     /// blend band counts at both levels.
     pub per_level: [u64; LEVELS],
@@ -117,20 +121,32 @@ impl SceneGpu {
         let mut particle_runs = Runs::<Share>::new(self.species.len());
         let mut stats = DrawStats { plants: self.plants.len() as u64, ..DrawStats::default() };
         let mut references = References::default();
-        // The plants in view with their projected size; the frame's HLP budget applies to
-        // them all before any level is chosen.
+        // The plants in view with their projected size (and whether a mass stands for them);
+        // the frame's budgets apply to them all before any level is chosen. The clusters
+        // leave out the plants their masses draw.
         let (mut in_view, mut sizes) = (Vec::new(), Vec::new());
-        for (index, plant) in self.plants.iter().enumerate() {
+        let view = ClusterView {
+            planes: &planes,
+            eye,
+            forward,
+            plan,
+            px_per_metre,
+            massed_below: lod.masses().then(|| lod.mass_band().0),
+            budgets: [lod.lone_budget, lod.billboard_budget],
+            lone_kept_above: lod.min_px,
+        };
+        stats.plants_visited = self.clusters.visit(&view, |index| {
+            let plant = &self.plants[index as usize];
             let s = &self.species[plant.species];
             let i = &plant.instance;
             let drawn_as = layer(i.object_id);
             if !drawn_as.visible {
-                continue;
+                return None;
             }
             let center = plant.world(s.bounds.center);
             let radius = s.bounds.radius * i.offset_scale[3];
             if planes.iter().any(|p| p.truncate().dot(center) + p.w < -radius) {
-                continue;
+                return None;
             }
             let px = match plan {
                 // Seen from above, the crown's extent matters, not the height.
@@ -140,17 +156,19 @@ impl SceneGpu {
                     s.height * i.offset_scale[3] * px_per_metre / depth
                 }
             };
-            in_view.push((index, drawn_as));
-            sizes.push(px);
-        }
+            in_view.push((index as usize, drawn_as));
+            sizes.push((px, plant.massed));
+            Some(px)
+        });
+        let lone_above = lod.lone_threshold(&sizes);
         let lod = &lod.within_budget(&sizes);
-        for ((index, drawn_as), px) in in_view.into_iter().zip(sizes) {
+        for ((index, drawn_as), (px, _)) in in_view.into_iter().zip(sizes) {
             let plant = &self.plants[index];
             let s = &self.species[plant.species];
             let i = &plant.instance;
             let slot = LayerCode::of_object_id(i.object_id).slot();
             let draws = lod.select(px, plant.massed);
-            if draws[0].is_none() {
+            if draws[0].is_none() || (!plant.massed && px <= lone_above) {
                 continue;
             }
             // A lone plant far away stays a dot (a mass draws the plants of a wood); a plan view
@@ -209,8 +227,11 @@ impl SceneGpu {
             };
             let range = chunk.levels[chunk.level_for(cell_px, TERRAIN_CELL_PX)].clone();
             stats.triangles += u64::from((range.end - range.start) / 3);
-            terrain_ranges.push(range);
+            terrain_ranges.push((chunk.center.distance_squared(eye), range));
         }
+        // Front to back: a hill hides the ground behind it before that ground is shaded.
+        terrain_ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let terrain_ranges = terrain_ranges.into_iter().map(|(_, range)| range).collect();
         stats.source_triangles = self.source_triangles;
         // Front to back within each run, so the depth test rejects hidden fragments early.
         let distance = |i: &Instance| eye.distance_squared(Vec3::from_slice(&i.offset_scale[..3]));

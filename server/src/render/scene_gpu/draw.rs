@@ -8,9 +8,10 @@ use crate::render::layer_code::LayerCode;
 use std::ops::Range;
 
 impl SceneGpu {
-    /// Records the draws of the terrain and every visible instance run, each mesh with the
-    /// `geometry` pipeline of its surface, then the chunks of vegetation masses; plants drawn
-    /// with leaf particles last, their leaves with the leaf pipeline. Each draw binds `frame`
+    /// Records the draws of every visible instance run, each mesh with the `geometry`
+    /// pipeline of its surface, then the chunks of vegetation masses, then the terrain (each
+    /// front to back, so hidden pixels fail the early depth test); plants drawn with leaf
+    /// particles last, their leaves with the leaf pipeline. Each draw binds `frame`
     /// (group 0) at the layer-style offset of its style slot.
     pub fn draw(
         &self,
@@ -22,14 +23,6 @@ impl SceneGpu {
         let bytes = std::mem::size_of_val(visible.instances.as_slice()) as u64;
         let layer_offset = |slot: usize| [(slot as u64 * LAYER_STRIDE) as u32];
         pass.set_vertex_buffer(1, self.instance_buffer.slice(..bytes));
-        pass.set_bind_group(0, frame, &layer_offset(LayerCode::TERRAIN.slot()));
-        pass.set_pipeline(geometry.pipeline(Surface::Terrain));
-        pass.set_bind_group(1, &self.terrain.material, &[]);
-        pass.set_vertex_buffer(0, self.terrain.vertices.slice(..));
-        pass.set_index_buffer(self.terrain.indices.slice(..), wgpu::IndexFormat::Uint32);
-        for range in &visible.terrain_ranges {
-            pass.draw_indexed(range.clone(), 0, 0..1);
-        }
         let draw = |pass: &mut wgpu::RenderPass<'_>, mesh: &GpuMesh, instances: Range<u32>| {
             pass.set_pipeline(geometry.pipeline(mesh.surface));
             pass.set_bind_group(1, &mesh.material, &[]);
@@ -45,6 +38,16 @@ impl SceneGpu {
         }
         if let Some(masses) = &self.masses {
             masses.draw(pass, &visible.masses, geometry.pipeline(Surface::Mass), frame, layer_offset);
+        }
+        // The terrain after the vegetation standing on it: where plants and masses cover the
+        // ground, the early depth test skips its pixels (lavapipe shades every pixel drawn).
+        pass.set_bind_group(0, frame, &layer_offset(LayerCode::TERRAIN.slot()));
+        pass.set_pipeline(geometry.pipeline(Surface::Terrain));
+        pass.set_bind_group(1, &self.terrain.material, &[]);
+        pass.set_vertex_buffer(0, self.terrain.vertices.slice(..));
+        pass.set_index_buffer(self.terrain.indices.slice(..), wgpu::IndexFormat::Uint32);
+        for range in &visible.terrain_ranges {
+            pass.draw_indexed(range.clone(), 0, 0..1);
         }
         for Batch { key, instances } in &visible.particle_batches {
             pass.set_bind_group(0, frame, &layer_offset(key.slot));

@@ -1,12 +1,13 @@
 //! The far-field vegetation masses on the GPU (`prep::masses`, thesis 7.3): each layer's domes
 //! in chunks of the plant-density grid, uploaded once; a frame culls the chunks, draws those
-//! reaching beyond the billboard range, and blends them with their plants by screen door
+//! reaching beyond the billboard range at the level of detail their distance asks (coarser
+//! cells far away, `prep::masses::coarsen`), and blends them with their plants by screen door
 //! (`mass_cover` in `shaders/gbuffer.wgsl`). A chunk's domes take their hatching from the
 //! grid reference points their plants use far away, so strokes stay put across the blend.
 
 use super::cull::{DrawStats, LayerDraw, ReferenceGrid, References};
 use super::upload::Uploader;
-use crate::prep::masses::{DOME_TRIANGLES, MASS_CELL, MassCell, Masses, dome_mesh};
+use crate::prep::masses::{MASS_CELL, MASS_LEVELS, MassCell, Masses, cell_size, coarsen, dome_mesh, dome_triangles};
 use crate::render::gbuffer::{Instance, Surface, Vertex, average_color, object_id};
 use crate::render::layer_code::LayerCode;
 use crate::scene::plant::{Material, PartKind, PlantModel};
@@ -18,6 +19,40 @@ use std::ops::Range;
 const CHUNK_CELLS: i64 = 16;
 /// The object index of a layer's masses (the last one: plants count from zero).
 const MASS_INDEX: u32 = LayerCode::INDEX_MASK - 1;
+/// The on-screen width (pixels) of a cell of the masses below which a chunk draws its next
+/// coarser level (`prep::masses::coarsen`): domes stay a few pixels wide, and a forest far
+/// away costs a quarter of the domes per level.
+const MIN_DOME_PX: f32 = 4.0;
+
+/// Octaves of the cell width before a level takes over across which it blends in: a chunk
+/// whose cells are up to this many octaves wider than MIN_DOME_PX draws its level and the next
+/// coarser one, each in a share of the screen door.
+const LEVEL_BLEND_OCTAVES: f32 = 0.5;
+
+/// The levels of detail a chunk whose finest cells are `cell_px` pixels wide draws, each with
+/// its screen-door window (`Instance::data_abstraction`): the finest level whose cells are at
+/// least MIN_DOME_PX wide, and within LEVEL_BLEND_OCTAVES before the next coarser one takes
+/// over that one too, its share of the dither values growing as the cells shrink.
+fn level_windows(cell_px: f32) -> Vec<(usize, [f32; 2])> {
+    let last = MASS_LEVELS - 1;
+    // The level in octaves: the chunk draws level ceil(x) alone unless x is near the next
+    // whole number.
+    let x = (MIN_DOME_PX / cell_px.max(1e-6)).log2();
+    let level = (x.ceil().max(0.0) as usize).min(last);
+    let share = if level == last {
+        0.0
+    } else {
+        ((x - (level as f32 - LEVEL_BLEND_OCTAVES)) / LEVEL_BLEND_OCTAVES).clamp(0.0, 1.0)
+    };
+    let share = share * share * (3.0 - 2.0 * share);
+    if share <= 0.0 {
+        return vec![(level, [0.0, 1.0])];
+    }
+    if share >= 1.0 {
+        return vec![(level + 1, [0.0, 1.0])];
+    }
+    vec![(level, [0.0, 1.0 - share]), (level + 1, [1.0 - share, 1.0])]
+}
 
 /// The foliage colour of a species: the triangle-weighted average colour of its foliage
 /// materials (of all parts when it has none), linear RGB.
@@ -42,10 +77,11 @@ struct MassChunk {
     radius: f32,
     /// Heights of the shortest and tallest plants its domes stand for (metres).
     heights: (f32, f32),
-    indices: Range<u32>,
-    /// The grid reference points its vertices index (`Vertex::hlp_index`), in order.
+    /// Its domes' indices and count per level of detail, finest first.
+    levels: [(Range<u32>, u64); MASS_LEVELS],
+    /// The grid reference points its vertices index (`Vertex::hlp_index`), in order: the
+    /// same for every level.
     references: Vec<u32>,
-    domes: u64,
 }
 
 /// Every layer's masses, resident on the GPU.
@@ -82,57 +118,70 @@ impl MassGpu {
         let mut indices: Vec<u32> = Vec::new();
         let mut chunks = Vec::new();
         for (layer, masses) in masses.iter().enumerate() {
-            let all: HashMap<(i64, i64), MassCell> = masses.cells.iter().map(|c| (c.key, *c)).collect();
-            let mut by_chunk: BTreeMap<(i64, i64), Vec<MassCell>> = BTreeMap::new();
-            for cell in &masses.cells {
-                let (i, j) = cell.key;
-                by_chunk.entry((i.div_euclid(CHUNK_CELLS), j.div_euclid(CHUNK_CELLS))).or_default().push(*cell);
+            // Each level's cells, and every chunk's cells per level (a coarse cell belongs to
+            // the chunk of its first fine cell: the chunk's side is a multiple of its width).
+            let mut by_chunk: BTreeMap<(i64, i64), [Vec<MassCell>; MASS_LEVELS]> = BTreeMap::new();
+            let mut all: Vec<HashMap<(i64, i64), MassCell>> = Vec::with_capacity(MASS_LEVELS);
+            for level in 0..MASS_LEVELS {
+                let factor = 1_i64 << level;
+                let cells = coarsen(&masses.cells, factor);
+                for cell in &cells {
+                    let (i, j) = (cell.key.0 * factor, cell.key.1 * factor);
+                    let chunk = (i.div_euclid(CHUNK_CELLS), j.div_euclid(CHUNK_CELLS));
+                    by_chunk.entry(chunk).or_default()[level].push(*cell);
+                }
+                all.push(cells.iter().map(|c| (c.key, *c)).collect());
             }
-            for cells in by_chunk.values() {
-                let mesh = dome_mesh(cells, &all);
+            for per_level in by_chunk.values() {
                 // Each dome's reference point: the grid cell its centre lies in (every mass
-                // cell lies inside one, as MASS_CELL divides the grid spacing).
+                // cell of every level lies inside one, as its width divides the grid spacing).
                 let mut references = Vec::new();
                 let mut local = HashMap::new();
-                let dome_reference: Vec<u32> = cells
-                    .iter()
-                    .map(|c| {
-                        let (x, y) = ((c.key.0 as f32 + 0.5) * MASS_CELL, (c.key.1 as f32 + 0.5) * MASS_CELL);
-                        let cell = grid.cell_at(x, y).unwrap_or(0);
-                        *local.entry(cell).or_insert_with(|| {
-                            references.push(cell);
-                            references.len() as u32 - 1
-                        })
-                    })
-                    .collect();
-                let first_vertex = vertices.len() as u32;
-                let first_index = indices.len() as u32;
                 let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-                for (v, p) in mesh.positions.iter().enumerate() {
-                    let dome = mesh.cell[v] as usize;
-                    let local_reference = dome_reference[dome];
-                    let sphere = grid.spheres[references[local_reference as usize] as usize];
-                    lo = lo.min(Vec3::from(*p));
-                    hi = hi.max(Vec3::from(*p));
-                    vertices.push(Vertex {
-                        position: *p,
-                        normal: mesh.normals[v],
-                        uv: [mesh.edge[v], cells[dome].height],
-                        hlp: [sphere.center.x, sphere.center.y, sphere.center.z, sphere.radius],
-                        hlp_index: local_reference,
-                        implicit: cells[dome].color,
-                    });
+                let mut levels: [(Range<u32>, u64); MASS_LEVELS] = Default::default();
+                for (level, cells) in per_level.iter().enumerate() {
+                    let size = cell_size(level);
+                    let mesh = dome_mesh(cells, &all[level], level);
+                    let dome_reference: Vec<u32> = cells
+                        .iter()
+                        .map(|c| {
+                            let (x, y) = ((c.key.0 as f32 + 0.5) * size, (c.key.1 as f32 + 0.5) * size);
+                            let cell = grid.cell_at(x, y).unwrap_or(0);
+                            *local.entry(cell).or_insert_with(|| {
+                                references.push(cell);
+                                references.len() as u32 - 1
+                            })
+                        })
+                        .collect();
+                    let first_vertex = vertices.len() as u32;
+                    let first_index = indices.len() as u32;
+                    for (v, p) in mesh.positions.iter().enumerate() {
+                        let dome = mesh.cell[v] as usize;
+                        let local_reference = dome_reference[dome];
+                        let sphere = grid.spheres[references[local_reference as usize] as usize];
+                        lo = lo.min(Vec3::from(*p));
+                        hi = hi.max(Vec3::from(*p));
+                        vertices.push(Vertex {
+                            position: *p,
+                            normal: mesh.normals[v],
+                            uv: [mesh.edge[v], cells[dome].height],
+                            hlp: [sphere.center.x, sphere.center.y, sphere.center.z, sphere.radius],
+                            hlp_index: local_reference,
+                            implicit: cells[dome].color,
+                        });
+                    }
+                    indices.extend(mesh.indices.iter().map(|i| i + first_vertex));
+                    levels[level] = (first_index..indices.len() as u32, cells.len() as u64);
                 }
-                indices.extend(mesh.indices.iter().map(|i| i + first_vertex));
-                let heights = cells.iter().fold((f32::MAX, f32::MIN), |(a, b), c| (a.min(c.height), b.max(c.height)));
+                let heights =
+                    per_level[0].iter().fold((f32::MAX, f32::MIN), |(a, b), c| (a.min(c.height), b.max(c.height)));
                 chunks.push(MassChunk {
                     object_id: object_id(LayerCode::vegetation(layer), MASS_INDEX),
                     center: (lo + hi) * 0.5,
                     radius: (hi - lo).length() * 0.5,
                     heights,
-                    indices: first_index..indices.len() as u32,
+                    levels,
                     references,
-                    domes: cells.len() as u64,
                 });
             }
         }
@@ -167,7 +216,7 @@ impl MassGpu {
         references: &mut References,
         stats: &mut DrawStats,
     ) -> Vec<MassDraw> {
-        let mut draws = Vec::new();
+        let mut draws: Vec<(f32, MassDraw)> = Vec::new();
         for chunk in &self.chunks {
             if !layer(chunk.object_id).visible
                 || view.planes.iter().any(|p| p.truncate().dot(chunk.center) + p.w < -chunk.radius)
@@ -183,22 +232,34 @@ impl MassGpu {
             if smallest_px >= view.band.1 {
                 continue;
             }
-            let instance = instances.len() as u32;
-            instances.push(Instance {
-                offset_scale: [0.0, 0.0, 0.0, 1.0],
-                rotation: [1.0, 0.0],
-                object_id: chunk.object_id,
-                reference_base: references.cells(&chunk.references),
-                mask: [view.band.0, view.band.1],
-                data_abstraction: [0.0; 2],
-                reference_sphere: [0.0; 4],
-            });
-            stats.mass_domes += chunk.domes;
-            stats.triangles += chunk.domes * DOME_TRIANGLES;
+            // The finest level whose cells are at least MIN_DOME_PX wide at the chunk's near
+            // side, blended with the next coarser one before it takes over.
+            let cell_px = match view.plan {
+                Some(m) => MASS_CELL / m,
+                None => MASS_CELL * view.px_per_metre / (chunk.center.distance(view.eye) - chunk.radius).max(1e-3),
+            };
             let slot = LayerCode::of_object_id(chunk.object_id).slot();
-            draws.push(MassDraw { slot, instance, indices: chunk.indices.clone() });
+            let distance = chunk.center.distance_squared(view.eye);
+            for (level, window) in level_windows(cell_px) {
+                let (indices, domes) = chunk.levels[level].clone();
+                let instance = instances.len() as u32;
+                instances.push(Instance {
+                    offset_scale: [0.0, 0.0, 0.0, 1.0],
+                    rotation: [1.0, 0.0],
+                    object_id: chunk.object_id,
+                    reference_base: references.cells(&chunk.references),
+                    mask: [view.band.0, view.band.1],
+                    data_abstraction: window,
+                    reference_sphere: [0.0; 4],
+                });
+                stats.mass_domes += domes;
+                stats.triangles += domes * dome_triangles(level);
+                draws.push((distance, MassDraw { slot, instance, indices }));
+            }
         }
-        draws
+        // Front to back, so the early depth test skips the domes behind nearer ones.
+        draws.sort_by(|a, b| a.0.total_cmp(&b.0));
+        draws.into_iter().map(|(_, draw)| draw).collect()
     }
 
     /// Records the draws of a frame's chunks with `pipeline`, each binding `frame` at the
@@ -222,5 +283,32 @@ impl MassGpu {
             pass.set_bind_group(0, frame, &layer_offset(draw.slot));
             pass.draw_indexed(draw.indices.clone(), 0, draw.instance..draw.instance + 1);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_chunk_blends_into_its_next_level_before_it_takes_over() {
+        // Cells wide on screen: the finest level alone.
+        assert_eq!(level_windows(4.0 * MIN_DOME_PX), vec![(0, [0.0, 1.0])]);
+        // Just before level 1 takes over both are drawn, in complementary windows, the
+        // coarser one's share growing as the cells shrink.
+        let shares: Vec<f32> = [0.3, 0.2, 0.1]
+            .iter()
+            .map(|octaves| {
+                let windows = level_windows(MIN_DOME_PX * 2f32.powf(*octaves));
+                assert_eq!(windows.len(), 2, "{windows:?}");
+                assert_eq!((windows[0].0, windows[1].0), (0, 1));
+                assert_eq!(windows[0].1[1], windows[1].1[0], "complementary: {windows:?}");
+                1.0 - windows[1].1[0]
+            })
+            .collect();
+        assert!(shares[0] < shares[1] && shares[1] < shares[2], "{shares:?}");
+        // Past the switch the coarser level alone, and the coarsest never blends further.
+        assert_eq!(level_windows(MIN_DOME_PX * 0.9), vec![(1, [0.0, 1.0])]);
+        assert_eq!(level_windows(MIN_DOME_PX / 64.0), vec![(MASS_LEVELS - 1, [0.0, 1.0])]);
     }
 }

@@ -10,6 +10,7 @@
 
 mod bake_cache;
 mod batch;
+mod clusters;
 mod cull;
 mod draw;
 mod masses;
@@ -32,6 +33,7 @@ use crate::prep::masses::{self as mass_groups, MassPlant, Masses};
 use crate::prep::terrain_lod::{TerrainChunk, TerrainLod};
 use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
+use clusters::PlantClusters;
 use cull::reference_grid;
 use glam::Vec3;
 use masses::{MassGpu, species_color};
@@ -125,6 +127,8 @@ pub struct SceneGpu {
     terrain_cell: f32,
     species: Vec<SpeciesGpu>,
     plants: Vec<Plant>,
+    /// The plants grouped for culling.
+    clusters: PlantClusters,
     source_triangles: u64,
     /// The far reference points: one sphere per terrain-grid cell holding plants (world space).
     cells: Vec<Sphere>,
@@ -230,6 +234,7 @@ impl SceneGpu {
         let grid = reference_grid(&mut plants, &species, REFERENCE_GRID_SPACING);
         let masses = MassGpu::new(&mut up, &layer_masses, &grid);
         let cells = grid.spheres;
+        let clusters = PlantClusters::new(&plants, &species);
         progress.report(Stage::Preprocessing, 1.0);
         let source_triangles = scene.terrain.mesh.triangle_count() as u64
             + plants.iter().map(|p| species[p.species].triangles[LodLevel::Full.index()]).sum::<u64>();
@@ -256,6 +261,7 @@ impl SceneGpu {
             terrain_chunks: terrain_lod.chunks,
             species,
             plants,
+            clusters,
             source_triangles,
             cells,
             masses,
