@@ -89,7 +89,7 @@ impl Default for LodSettings {
             mass_px: 8.0,
             grid_px: 12.0,
             fade: 0.2,
-            hlp_budget: 400,
+            hlp_budget: 100,
             billboard_budget: 2000,
             lone_budget: 20000,
             force: None,

@@ -242,7 +242,7 @@ impl SceneGpu {
         let particle_batches = particle_runs.append_to(&mut instances);
         let masses = match &self.masses {
             Some(masses) if lod.masses() => {
-                let view = MassView { planes: &planes, eye, plan, px_per_metre, band: lod.mass_band() };
+                let view = MassView { planes: &planes, eye, plan, px_per_metre, band: lod.mass_band(), width };
                 masses.cull(&view, &layer, &mut instances, &mut references, &mut stats)
             }
             _ => Vec::new(),

@@ -19,25 +19,26 @@ use std::ops::Range;
 const CHUNK_CELLS: i64 = 16;
 /// The object index of a layer's masses (the last one: plants count from zero).
 const MASS_INDEX: u32 = LayerCode::INDEX_MASK - 1;
-/// The on-screen width (pixels) of a cell of the masses below which a chunk draws its next
-/// coarser level (`prep::masses::coarsen`): domes stay a few pixels wide, and a forest far
-/// away costs a quarter of the domes per level.
-const MIN_DOME_PX: f32 = 4.0;
+/// The on-screen width of a cell of the masses, as a share of the image's width, below which a
+/// chunk draws its next coarser level (`prep::masses::coarsen`): domes stay 8 px wide in a
+/// 1024 px view, and a forest far away costs a quarter of the domes per level. A share, not
+/// pixels, so a thumbnail draws the same masses as the large view it stands for.
+const MIN_DOME_SHARE: f32 = 8.0 / 1024.0;
 
 /// Octaves of the cell width before a level takes over across which it blends in: a chunk
-/// whose cells are up to this many octaves wider than MIN_DOME_PX draws its level and the next
-/// coarser one, each in a share of the screen door.
+/// whose cells are up to this many octaves wider than the least dome width draws its level and
+/// the next coarser one, each in a share of the screen door.
 const LEVEL_BLEND_OCTAVES: f32 = 0.5;
 
 /// The levels of detail a chunk whose finest cells are `cell_px` pixels wide draws, each with
 /// its screen-door window (`Instance::data_abstraction`): the finest level whose cells are at
-/// least MIN_DOME_PX wide, and within LEVEL_BLEND_OCTAVES before the next coarser one takes
-/// over that one too, its share of the dither values growing as the cells shrink.
-fn level_windows(cell_px: f32) -> Vec<(usize, [f32; 2])> {
+/// least `min_px` wide, and within LEVEL_BLEND_OCTAVES before the next coarser one takes over
+/// that one too, its share of the dither values growing as the cells shrink.
+fn level_windows(cell_px: f32, min_px: f32) -> Vec<(usize, [f32; 2])> {
     let last = MASS_LEVELS - 1;
     // The level in octaves: the chunk draws level ceil(x) alone unless x is near the next
     // whole number.
-    let x = (MIN_DOME_PX / cell_px.max(1e-6)).log2();
+    let x = (min_px / cell_px.max(1e-6)).log2();
     let level = (x.ceil().max(0.0) as usize).min(last);
     let share = if level == last {
         0.0
@@ -108,6 +109,8 @@ pub(super) struct MassView<'a> {
     pub px_per_metre: f32,
     /// `LodSettings::mass_band`.
     pub band: (f32, f32),
+    /// The image's width in pixels.
+    pub width: u32,
 }
 
 impl MassGpu {
@@ -232,15 +235,15 @@ impl MassGpu {
             if smallest_px >= view.band.1 {
                 continue;
             }
-            // The finest level whose cells are at least MIN_DOME_PX wide at the chunk's near
-            // side, blended with the next coarser one before it takes over.
+            // The finest level whose cells are at least MIN_DOME_SHARE of the image wide at the
+            // chunk's near side, blended with the next coarser one before it takes over.
             let cell_px = match view.plan {
                 Some(m) => MASS_CELL / m,
                 None => MASS_CELL * view.px_per_metre / (chunk.center.distance(view.eye) - chunk.radius).max(1e-3),
             };
             let slot = LayerCode::of_object_id(chunk.object_id).slot();
             let distance = chunk.center.distance_squared(view.eye);
-            for (level, window) in level_windows(cell_px) {
+            for (level, window) in level_windows(cell_px, MIN_DOME_SHARE * view.width as f32) {
                 let (indices, domes) = chunk.levels[level].clone();
                 let instance = instances.len() as u32;
                 instances.push(Instance {
@@ -293,13 +296,14 @@ mod tests {
     #[test]
     fn a_chunk_blends_into_its_next_level_before_it_takes_over() {
         // Cells wide on screen: the finest level alone.
-        assert_eq!(level_windows(4.0 * MIN_DOME_PX), vec![(0, [0.0, 1.0])]);
+        let min = 8.0;
+        assert_eq!(level_windows(4.0 * min, min), vec![(0, [0.0, 1.0])]);
         // Just before level 1 takes over both are drawn, in complementary windows, the
         // coarser one's share growing as the cells shrink.
         let shares: Vec<f32> = [0.3, 0.2, 0.1]
             .iter()
             .map(|octaves| {
-                let windows = level_windows(MIN_DOME_PX * 2f32.powf(*octaves));
+                let windows = level_windows(min * 2f32.powf(*octaves), min);
                 assert_eq!(windows.len(), 2, "{windows:?}");
                 assert_eq!((windows[0].0, windows[1].0), (0, 1));
                 assert_eq!(windows[0].1[1], windows[1].1[0], "complementary: {windows:?}");
@@ -308,7 +312,7 @@ mod tests {
             .collect();
         assert!(shares[0] < shares[1] && shares[1] < shares[2], "{shares:?}");
         // Past the switch the coarser level alone, and the coarsest never blends further.
-        assert_eq!(level_windows(MIN_DOME_PX * 0.9), vec![(1, [0.0, 1.0])]);
-        assert_eq!(level_windows(MIN_DOME_PX / 64.0), vec![(MASS_LEVELS - 1, [0.0, 1.0])]);
+        assert_eq!(level_windows(min * 0.9, min), vec![(1, [0.0, 1.0])]);
+        assert_eq!(level_windows(min / 64.0, min), vec![(MASS_LEVELS - 1, [0.0, 1.0])]);
     }
 }
