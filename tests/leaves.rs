@@ -299,3 +299,78 @@ fn abstraction_rises_with_distance() {
         assert!(changed > 50, "the abstraction shows on the tree {distance} m away ({changed} pixels)");
     }
 }
+
+/// The shapes (`leaf_mode` `shapes`) and the styles they are shown in: a sketch, and the
+/// `toon_shapes` preset's colour with its 3-band ramp.
+fn shape_styles() -> [Style; 2] {
+    let toon = landsketch::render::presets::preset("toon_shapes").expect("the toon_shapes preset");
+    [Style { leaf_mode: LeafMode::Shapes, ..sketch(LeafMode::Shapes) }, toon]
+}
+
+#[test]
+fn substitution_shapes_stand_for_the_branch_clusters_at_both_finer_levels() {
+    use landsketch::prep::hlp;
+    use landsketch::prep::lod::{LodLevel, LodSettings};
+    use landsketch::render::RenderOptions;
+    let scene = trees_on_a_plain(&[[0.0, 0.0]]);
+    let species = &scene.species[0];
+    let hlps = hlp::cluster(&species.model, species.hlp_radius).spheres.len();
+    let forced = |level| {
+        let lod = LodSettings { force: Some(level), ..LodSettings::default() };
+        Renderer::with_options(common::gpu(), &scene, &RenderOptions { lod, ..RenderOptions::default() })
+            .expect("renderer")
+    };
+    let (full, hlp_level) = (forced(LodLevel::Full), forced(LodLevel::Hlp));
+    let camera = camera_at(12.0);
+    let [sketched, toon] = shape_styles();
+    // The G-buffer's surface kinds and patches of the plant's pixels: every foliage pixel is a
+    // shape (surface 2, foliage), one patch per HLP, at the full level and at the HLP level,
+    // which draws no billboard (surface 3).
+    let patches = |renderer: &Renderer, style: &Style| {
+        let frame = renderer.render(FrameRequest::new(&camera, style, WIDTH, HEIGHT).read(Readback::IDS)).unwrap();
+        let (ids, second) = (frame.ids.unwrap_or_default(), frame.patches.unwrap_or_default());
+        let mut surfaces = std::collections::BTreeSet::new();
+        let mut patches = std::collections::BTreeSet::new();
+        for (_, &patch) in ids.iter().zip(&second).filter(|(id, _)| **id >> 24 >= 2) {
+            surfaces.insert(patch >> 24);
+            if patch & 0x00FF_FFFF != 0 {
+                patches.insert(patch & 0x00FF_FFFF);
+            }
+        }
+        (surfaces, patches.len())
+    };
+    for (name, renderer) in [("full", &full), ("HLP", &hlp_level)] {
+        let (surfaces, count) = patches(renderer, &sketched);
+        assert!(!surfaces.contains(&3), "{name} level: billboards drawn with shapes: {surfaces:?}");
+        assert!(surfaces.contains(&2), "{name} level: no shape drawn: {surfaces:?}");
+        assert!(count * 2 >= hlps && count <= hlps, "{name} level: {count} shapes seen of {hlps} HLPs");
+    }
+    // The shapes are the model's size: the tree covers about what its leaves cover.
+    let leaves = count(&plant_mask(&full, &camera, &sketch(LeafMode::Original)));
+    let shapes = count(&plant_mask(&full, &camera, &sketched));
+    assert!(shapes as f32 > 0.6 * leaves as f32 && (shapes as f32) < 1.6 * leaves as f32, "{shapes} against {leaves}");
+    // Toon shading (Campos et al. §4, a 1D ramp of 3 bands): apart from outlines and the
+    // dark gaps between shapes, the crown's pixels take a few colours.
+    let image = full.render(FrameRequest::new(&camera, &toon, WIDTH, HEIGHT)).map(|f| f.image).unwrap();
+    let mask = plant_mask(&full, &camera, &toon);
+    let mut colours = std::collections::HashMap::new();
+    for (pixel, _) in image.pixels().zip(&mask).filter(|(p, m)| **m && common::luminance(p) > 0.2) {
+        *colours.entry([pixel[0] / 8, pixel[1] / 8, pixel[2] / 8]).or_insert(0usize) += 1;
+    }
+    let mut counts: Vec<usize> = colours.values().copied().collect();
+    counts.sort_unstable_by(|a, b| b.cmp(a));
+    let lit: usize = counts.iter().sum();
+    assert!(
+        counts.iter().take(4).sum::<usize>() * 10 >= lit * 8,
+        "more than a few tones: {:?}",
+        &counts[..10.min(counts.len())]
+    );
+    let mut sheet = image::RgbaImage::new(WIDTH * 3, HEIGHT);
+    for (col, (renderer, style)) in
+        [(&full, &sketched), (&hlp_level, &sketched), (&full, &toon)].into_iter().enumerate()
+    {
+        let image = renderer.render(FrameRequest::new(&camera, style, WIDTH, HEIGHT)).map(|f| f.image).unwrap();
+        image::imageops::replace(&mut sheet, &image, i64::from(WIDTH) * col as i64, 0);
+    }
+    assert_matches_reference(&sheet, Path::new("tests/reference/substitution_shapes.png"), 0.03);
+}

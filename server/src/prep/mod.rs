@@ -13,4 +13,5 @@ pub mod leaf_shape;
 pub mod leaves;
 pub mod lod;
 pub mod masses;
+pub mod substitution;
 pub mod terrain_lod;

@@ -171,7 +171,7 @@ gpu_block! {
         /// ([`super::style::Style::terrain_tile`]).
         pub terrain_tile: f32,
         /// Leaf mode ([`super::style::LeafMode`]: 0 original, 1 billboard, 2 reoriented,
-        /// 3 elliptical).
+        /// 3 elliptical, 4 shapes).
         pub leaf_mode: u32,
         /// Leaf size.
         pub leaf_size: f32,

@@ -88,6 +88,16 @@ pub const PRESETS: &[Preset] = &[
             "sky": 0.7, "sky_zenith": [0.45, 0.7, 0.95], "sky_horizon": [0.96, 0.95, 0.85],
             "paper": [1.0, 0.98, 0.92]}"#,
     },
+    Preset {
+        name: "toon_shapes",
+        description: "trees generalized into one ellipsoid per branch cluster, toon-shaded in 3 bands with outlines \
+            (Campos et al. 2004, Fig. 6)",
+        overrides: r#"{"color": 1.0, "color_abstraction": 1.0, "color_saturation": 1.2, "toon": 1.0,
+            "leaf_mode": "shapes", "toon_levels": 3, "ambient": 0.35, "normal_blend": 0.0,
+            "contour_threshold": 0.1, "silhouette_map": 0, "silhouette_support": 3.0, "hatch_strength": 0.0,
+            "sky": 0.7, "sky_zenith": [0.45, 0.7, 0.95], "sky_horizon": [0.96, 0.95, 0.85],
+            "paper": [1.0, 0.98, 0.92]}"#,
+    },
 ];
 
 /// The names of all presets, comma-separated (for error messages).

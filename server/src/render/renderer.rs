@@ -190,6 +190,10 @@ pub struct Frame {
     pub depth: Option<Vec<f32>>,
     /// Object IDs, row-major, when [`Readback::ids`] was asked for.
     pub ids: Option<Vec<u32>>,
+    /// The G-buffer's second ID of every pixel, row-major, with the object IDs: the kind of
+    /// surface (`gbuffer::Surface` code) in the top 8 bits and the patch below (an HLP index
+    /// + 1, a substitution shape's, or a terrain pixel's land-cover class).
+    pub patches: Option<Vec<u32>>,
     /// What the geometry pass drew (the seeds' Table 8.1 figures).
     pub stats: DrawStats,
     /// Per-pass times when the request was [`FrameRequest::profiled`].
@@ -588,20 +592,27 @@ impl Renderer {
         let mut timer = recorder.submit();
         let image = readback::read_rgba8(&self.gpu, &targets.output, width, height)?;
         timer.mark("readback");
-        // The first 32-bit channel of every texel of a two-channel 32-bit target.
-        let first_channel = |texture: &wgpu::Texture| -> Result<Vec<[u8; 4]>, RenderError> {
+        // The two 32-bit channels of every texel of a two-channel 32-bit target.
+        let channels = |texture: &wgpu::Texture| -> Result<Vec<[[u8; 4]; 2]>, RenderError> {
             let texels = readback::read_texels(&self.gpu, texture, width, height, 8)?;
-            Ok(texels.chunks_exact(8).map(|b| [b[0], b[1], b[2], b[3]]).collect())
+            Ok(texels.chunks_exact(8).map(|b| [[b[0], b[1], b[2], b[3]], [b[4], b[5], b[6], b[7]]]).collect())
         };
         let depth = match request.read.depth {
             true => Some(
-                first_channel(&targets.gbuffer.linear_depth_texture)?.into_iter().map(f32::from_ne_bytes).collect(),
+                channels(&targets.gbuffer.linear_depth_texture)?
+                    .into_iter()
+                    .map(|[d, _]| f32::from_ne_bytes(d))
+                    .collect(),
             ),
             false => None,
         };
-        let ids = match request.read.ids {
-            true => Some(first_channel(&targets.gbuffer.id_texture)?.into_iter().map(u32::from_ne_bytes).collect()),
-            false => None,
+        let (ids, patches) = match request.read.ids {
+            true => {
+                let texels = channels(&targets.gbuffer.id_texture)?;
+                let ids = texels.iter().map(|[id, _]| u32::from_ne_bytes(*id)).collect();
+                (Some(ids), Some(texels.iter().map(|[_, patch]| u32::from_ne_bytes(*patch)).collect()))
+            }
+            false => (None, None),
         };
         debug!(
             width,
@@ -611,6 +622,6 @@ impl Renderer {
             plants = visible.stats.plants_drawn,
             "frame rendered"
         );
-        Ok(Frame { image, depth, ids, stats: visible.stats, times: None })
+        Ok(Frame { image, depth, ids, patches, stats: visible.stats, times: None })
     }
 }

@@ -61,13 +61,17 @@ pub enum LeafMode {
     /// One ellipse per leaf in the plane tangent to its HLP sphere, elongated around the HLP's
     /// vertical axis (the "Van Gogh" look of NPAR Fig. 3, thesis Fig. 4.8c).
     Elliptical,
+    /// No leaves: one substitution shape per branch cluster, an ellipsoid in the box of its
+    /// leaves (SPEC P5, Campos et al. 2004 §3.2, `prep::substitution`), also in place of the
+    /// HLP billboard clouds of the next level of detail.
+    Shapes,
 }
 
 impl LeafMode {
     /// Whether leaves are drawn as particles (one primitive per leaf) rather than the model's
-    /// own geometry.
+    /// own geometry or substitution shapes.
     pub fn particles(self) -> bool {
-        self != LeafMode::Original
+        !matches!(self, LeafMode::Original | LeafMode::Shapes)
     }
 }
 
@@ -480,9 +484,11 @@ style_fields! {
     abstraction_far: f32 = 150.0, 0..=100000;
     /// How leaves of plants at full detail are drawn: `original` (the model's leaf geometry),
     /// `billboard` (a camera-facing quad per leaf, SPEC R2), `reoriented` (each leaf's quad
-    /// turned away from its HLP centre, thesis 4.2 "children's book") or `elliptical`
-    /// (ellipses tangent to the HLP sphere, elongated around its vertical axis, "Van Gogh").
-    /// The particle modes draw fewer, larger leaves as a plant gets smaller on screen (SPEC P4).
+    /// turned away from its HLP centre, thesis 4.2 "children's book"), `elliptical`
+    /// (ellipses tangent to the HLP sphere, elongated around its vertical axis, "Van Gogh") or
+    /// `shapes` (one ellipsoid per branch cluster instead of its leaves, also at the next level
+    /// of detail, SPEC P5). The particle modes draw fewer, larger leaves as a plant gets
+    /// smaller on screen (SPEC P4).
     leaf_mode: LeafMode = LeafMode::Original;
     /// Scale of the leaf particles about their centres (the particle modes of `leaf_mode`).
     leaf_size: f32 = 1.0, 0.25..=4;

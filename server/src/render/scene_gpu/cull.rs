@@ -12,7 +12,7 @@ use crate::prep::lod::{LodLevel, LodSettings};
 use crate::render::gbuffer::{Instance, object_id};
 use crate::render::layer_code::LayerCode;
 use crate::render::parametrization::RefKey;
-use crate::render::style::Style;
+use crate::render::style::{LeafMode, Style};
 use crate::scene::camera::Camera;
 use glam::Vec3;
 use serde::Serialize;
@@ -61,11 +61,18 @@ pub struct LayerDraw {
     /// Whether plants at full detail draw leaf particles instead of the model's foliage (a
     /// particle `Style::leaf_mode`).
     pub particles: bool,
+    /// Whether plants at full detail and at the HLP level draw substitution shapes instead of
+    /// foliage and HLP billboard clouds (`Style::leaf_mode` `shapes`).
+    pub shapes: bool,
 }
 
 impl From<&Style> for LayerDraw {
     fn from(style: &Style) -> LayerDraw {
-        LayerDraw { visible: style.visible, particles: style.leaf_mode.particles() }
+        LayerDraw {
+            visible: style.visible,
+            particles: style.leaf_mode.particles(),
+            shapes: style.leaf_mode == LeafMode::Shapes,
+        }
     }
 }
 
@@ -77,6 +84,9 @@ pub struct VisibleSet {
     pub(super) batches: Vec<Batch<LodLevel>>,
     /// Runs of plants at full detail drawn with a share of their leaf particles.
     pub(super) particle_batches: Vec<Batch<Share>>,
+    /// Runs drawn with substitution shapes (`LayerDraw::shapes`): the full or HLP level's
+    /// wood and the species' shapes.
+    pub(super) shape_batches: Vec<Batch<LodLevel>>,
     /// Chunks of vegetation masses, each with its instance.
     pub(super) masses: Vec<MassDraw>,
     /// Index ranges of the visible terrain chunks at their levels of detail.
@@ -119,6 +129,7 @@ impl SceneGpu {
         // slot's layer style once (per-pixel lookups of it cost more than the shading).
         let mut runs = Runs::<LodLevel>::new(self.species.len());
         let mut particle_runs = Runs::<Share>::new(self.species.len());
+        let mut shape_runs = Runs::<LodLevel>::new(self.species.len());
         let mut stats = DrawStats { plants: self.plants.len() as u64, ..DrawStats::default() };
         let mut references = References::default();
         // The plants in view with their projected size (and whether a mass stands for them);
@@ -185,7 +196,13 @@ impl SceneGpu {
                 // Leaf particles: the share of the leaves falls with the plant's size (SPEC P4).
                 let share = (drawn_as.particles && draw.level == LodLevel::Full)
                     .then(|| leaves::particle_bucket(px, s.particles.count));
-                stats.triangles += share.map_or(s.triangles[draw.level.index()], |b| s.particles.triangles[b]);
+                // Substitution shapes stand for the foliage of both finer levels (SPEC P5).
+                let shapes = drawn_as.shapes && draw.level != LodLevel::Plant;
+                stats.triangles += match (share, shapes) {
+                    (Some(b), _) => s.particles.triangles[b],
+                    (None, true) => s.wood_triangles[draw.level.index()] + s.shapes.triangles,
+                    (None, false) => s.triangles[draw.level.index()],
+                };
                 let (reference_base, reference_sphere) = match draw.level {
                     LodLevel::Full | LodLevel::Hlp => (references.hlps(index as u32, s.spheres.len()), [0.0; 4]),
                     LodLevel::Plant if px < lod.grid_px => {
@@ -199,9 +216,11 @@ impl SceneGpu {
                     Instance { mask: draw.mask, reference_base, reference_sphere, data_abstraction, ..*i };
                 instance.offset_scale[3] *= dot;
                 let species = plant.species;
-                match share {
-                    Some(b) => particle_runs.push(BatchKey { species, detail: Share(b), slot }, instance),
-                    None => runs.push(BatchKey { species, detail: draw.level, slot }, instance),
+                let key = BatchKey { species, detail: draw.level, slot };
+                match (share, shapes) {
+                    (Some(b), _) => particle_runs.push(BatchKey { species, detail: Share(b), slot }, instance),
+                    (None, true) => shape_runs.push(key, instance),
+                    (None, false) => runs.push(key, instance),
                 }
             }
         }
@@ -237,9 +256,11 @@ impl SceneGpu {
         let distance = |i: &Instance| eye.distance_squared(Vec3::from_slice(&i.offset_scale[..3]));
         runs.sort_each(|a, b| distance(a).total_cmp(&distance(b)));
         particle_runs.sort_each(|a, b| distance(a).total_cmp(&distance(b)));
+        shape_runs.sort_each(|a, b| distance(a).total_cmp(&distance(b)));
         let mut instances = vec![terrain];
         let batches = runs.append_to(&mut instances);
         let particle_batches = particle_runs.append_to(&mut instances);
+        let shape_batches = shape_runs.append_to(&mut instances);
         let masses = match &self.masses {
             Some(masses) if lod.masses() => {
                 let view = MassView { planes: &planes, eye, plan, px_per_metre, band: lod.mass_band(), width };
@@ -248,7 +269,16 @@ impl SceneGpu {
             _ => Vec::new(),
         };
         stats.reference_points = references.keys.len() as u64;
-        VisibleSet { instances, batches, particle_batches, masses, terrain_ranges, references: references.keys, stats }
+        VisibleSet {
+            instances,
+            batches,
+            particle_batches,
+            shape_batches,
+            masses,
+            terrain_ranges,
+            references: references.keys,
+            stats,
+        }
     }
 }
 

@@ -9,7 +9,8 @@ use std::ops::Range;
 
 impl SceneGpu {
     /// Records the draws of every visible instance run, each mesh with the `geometry`
-    /// pipeline of its surface, then the chunks of vegetation masses, then the terrain (each
+    /// pipeline of its surface, and of the runs drawn with substitution shapes, then the
+    /// chunks of vegetation masses, then the terrain (each
     /// front to back, so hidden pixels fail the early depth test); plants drawn with leaf
     /// particles last, their leaves with the leaf pipeline. Each draw binds `frame`
     /// (group 0) at the layer-style offset of its style slot.
@@ -35,6 +36,16 @@ impl SceneGpu {
             for mesh in &self.species[key.species].levels[key.detail.index()] {
                 draw(pass, mesh, instances.clone());
             }
+        }
+        // Substitution shapes (SPEC P5): the level's wood (the full model's, or the HLP
+        // level's trunk prism) and the species' shapes.
+        for Batch { key, instances } in &visible.shape_batches {
+            pass.set_bind_group(0, frame, &layer_offset(key.slot));
+            let s = &self.species[key.species];
+            for mesh in s.levels[key.detail.index()].iter().filter(|m| m.surface == Surface::Wood) {
+                draw(pass, mesh, instances.clone());
+            }
+            draw(pass, &s.shapes.mesh, instances.clone());
         }
         if let Some(masses) = &self.masses {
             masses.draw(pass, &visible.masses, geometry.pipeline(Surface::Mass), frame, layer_offset);

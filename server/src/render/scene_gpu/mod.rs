@@ -82,11 +82,23 @@ struct Particles {
     triangles: [u64; PARTICLE_SHARES.len()],
 }
 
+/// The substitution shapes of a species (SPEC P5, `prep::substitution`): one ellipsoid per
+/// HLP, drawn with the wood of the level they stand in for (the full model's or the trunk
+/// prism) in the `shapes` leaf mode.
+struct Shapes {
+    mesh: GpuMesh,
+    triangles: u64,
+}
+
 /// One species on the GPU: its meshes at every level of detail.
 struct SpeciesGpu {
     levels: [Vec<GpuMesh>; LEVELS],
     /// What replaces the full level in the particle leaf modes.
     particles: Particles,
+    /// What replaces the foliage of the full and HLP levels in the `shapes` leaf mode.
+    shapes: Shapes,
+    /// Triangles of the wood meshes of each level (drawn with the shapes).
+    wood_triangles: [u64; LEVELS],
     triangles: [u64; LEVELS],
     /// Bounding sphere of the model (model space), for culling.
     bounds: Sphere,
@@ -247,7 +259,8 @@ impl SceneGpu {
         );
         // Meshes and textures, and at most every plant twice and every mass chunk once per
         // frame (the reference buffer grows with what a frame draws; it is not counted).
-        let instance_count = 2 * plants.len() as u64 + 1 + masses.as_ref().map_or(0, |m| m.chunk_count() as u64);
+        // Every plant at two levels, the terrain, and every chunk of masses at two levels.
+        let instance_count = 2 * plants.len() as u64 + 1 + masses.as_ref().map_or(0, |m| 2 * m.chunk_count() as u64);
         let gpu_bytes = up.bytes() + instance_count * std::mem::size_of::<Instance>() as u64;
         let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("instances"),

@@ -2,13 +2,15 @@
 //! instance list and reference coordinates.
 
 use super::bake_cache::{BILLBOARD_TILE, VIEWS, bake_tiles, cached_billboards};
-use super::{GpuMesh, LeafGpu, Particles, SceneGpu, SpeciesGpu, VisibleSet};
+use super::masses::species_color;
+use super::{GpuMesh, LeafGpu, Particles, SceneGpu, Shapes, SpeciesGpu, VisibleSet};
 use crate::prep::cache::DiskCache;
 use crate::prep::hlp::{self, Hlps, Sphere};
 use crate::prep::implicit::{self, ImplicitParams};
 use crate::prep::leaf_shape::{ShapeParams, shape_map_cached};
 use crate::prep::leaves::{self, Leaf, PARTICLE_SHARES};
 use crate::prep::lod::{self, Atlas, Billboard};
+use crate::prep::substitution;
 use crate::render::bake::Baker;
 use crate::render::gbuffer::{GeometryPass, LeafVertex, NO_HLP, Surface, SurfaceMaterial, Vertex};
 use crate::render::uniforms::{self, Vec3f, Vec4f};
@@ -386,11 +388,36 @@ impl<'a> Uploader<'a> {
         let lit = vec![[0.0, 0.0, plant_ka]; plant_mesh.positions.len()];
         let plant_owner = Some((plant_owner.as_slice(), std::slice::from_ref(&board)));
         let plant_level = vec![self.lit_mesh(&plant_mesh, plant_owner, &lit, &billboard_material, Surface::Billboard)];
+        // Substitution shapes (SPEC P5): an ellipsoid per HLP in the foliage's mean colour, lit
+        // with its HLP's mean k_a along its own normals (an ambient term, no turn).
+        let (shape_mesh, shape_owners) = substitution::shape_mesh(&substitution::fit_shapes(model, hlps));
+        let lit: Vec<[f32; 3]> = shape_mesh
+            .normals
+            .iter()
+            .zip(&shape_owners)
+            .map(|(n, &h)| (Vec3::from(*n) * hlp_ka[h as usize]).to_array())
+            .collect();
+        let [r, g, b] = species_color(model);
+        let shape_material = Material {
+            name: format!("{} substitution shapes", model.name),
+            base_color: [r, g, b, 1.0],
+            texture: None,
+            alpha_cutoff: None,
+            double_sided: false,
+        };
+        let shapes = Shapes {
+            triangles: shape_mesh.triangle_count() as u64,
+            mesh: self.lit_mesh(&shape_mesh, Some((&shape_owners, spheres)), &lit, &shape_material, Surface::Foliage),
+        };
         let (lo, hi) = model.bounds();
         let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
+        let full_wood = model.parts.iter().filter(|p| p.kind == PartKind::Wood).map(|p| p.mesh.triangle_count() as u64);
+        let wood_triangles = [full_wood.sum(), hlp_triangles - hlp_mesh.triangle_count() as u64, 0];
         Ok(SpeciesGpu {
             levels: [full, hlp_level, plant_level],
             particles,
+            shapes,
+            wood_triangles,
             triangles: [model.triangle_count() as u64, hlp_triangles, plant_mesh.triangle_count() as u64],
             bounds: Sphere { center: (lo + hi) * 0.5, radius: (hi - lo).length() * 0.5 },
             height: hi.z - lo.z,
