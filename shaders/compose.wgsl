@@ -285,8 +285,12 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     // The tone is only needed for strokes (a photorealistic style draws none).
     if post.hatch_strength > 0.0 || post.silhouette_strength > 0.0 {
         let t = data_tone(data_at(p), blurred_tone(p));
-        // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes).
-        ink = max(ink, hatch_ink(p, mix(t, 1.0, post.hatch_brightness)));
+        // Thesis 8.2.7: the hatch tone is lifted towards the brightest level (no strokes), and
+        // further with the distance (thesis 7.3, `distance_simplification`): the TAM's nested
+        // tones drop far strokes one by one.
+        let far = smoothstep(post.abstraction_near, post.abstraction_far, textureLoad(depth_tex, p, 0).r);
+        let lift = 1.0 - (1.0 - post.hatch_brightness) * (1.0 - post.distance_simplification * far);
+        ink = max(ink, hatch_ink(p, mix(t, 1.0, lift)));
         ink = max(ink, silhouette_ink(p, t, size));
     }
     var base = post.paper;

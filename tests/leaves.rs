@@ -300,6 +300,42 @@ fn abstraction_rises_with_distance() {
     }
 }
 
+/// Stroke simplification with distance (thesis 7.3): a tree nearer than `abstraction_near` is
+/// hatched as without it; one beyond `abstraction_far` loses the lifted share of its strokes —
+/// all of them at 1, as `hatch_brightness` 1 draws it — and fewer at a half.
+#[test]
+fn strokes_simplify_with_distance() {
+    let scene = trees_on_a_plain(&[[0.0, 0.0]]);
+    let renderer = full_detail(&scene);
+    let simplified = |share: f32| Style {
+        distance_simplification: share,
+        abstraction_near: 40.0,
+        abstraction_far: 60.0,
+        contour_strength: 0.0,
+        silhouette_strength: 0.0,
+        ..Style::default()
+    };
+    for distance in [20.0f32, 90.0] {
+        let camera = camera_at(distance);
+        // The tree's pixels (the plain behind the near tree lies beyond `abstraction_near`).
+        let tree = plant_mask(&renderer, &camera, &simplified(0.0));
+        let render = |style: &Style| -> Vec<image::Rgba<u8>> {
+            let image = renderer.render(FrameRequest::new(&camera, style, WIDTH, HEIGHT)).map(|f| f.image).unwrap();
+            image.pixels().zip(&tree).filter(|(_, t)| **t).map(|(p, _)| *p).collect()
+        };
+        let ink = |pixels: &[image::Rgba<u8>]| pixels.iter().filter(|p| common::luminance(p) < 0.5).count();
+        let (none, half, all) = (render(&simplified(0.0)), render(&simplified(0.5)), render(&simplified(1.0)));
+        if distance < 40.0 {
+            assert!(none == half && none == all, "the tree {distance} m away keeps its strokes");
+            continue;
+        }
+        let blank = render(&Style { hatch_brightness: 1.0, ..simplified(0.0) });
+        assert!(all == blank, "at 1 the far tree keeps no strokes");
+        let (none, half, all) = (ink(&none), ink(&half), ink(&all));
+        assert!(none > half && half > all, "ink falls as the strokes simplify: {none} > {half} > {all}");
+    }
+}
+
 /// The shapes (`leaf_mode` `shapes`) and the styles they are shown in: a sketch, and the
 /// `toon_shapes` preset's colour with its 3-band ramp.
 fn shape_styles() -> [Style; 2] {

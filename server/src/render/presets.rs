@@ -129,7 +129,7 @@ mod tests {
             assert!(styles.iter().all(|s| *s != style), "{} repeats another preset", p.name);
             styles.push(style);
         }
-        assert_eq!(PRESETS.len(), 8);
+        assert_eq!(PRESETS.len(), 9);
     }
 
     #[test]

@@ -477,10 +477,17 @@ style_fields! {
     /// `abstraction_far` on, smoothly in between; 0 off. Near plants keep their detail while
     /// the ones behind them simplify into their crowns' shapes.
     distance_abstraction: f32 = 0.0, 0..=1;
-    /// Distance from the eye in metres (along the view) where `distance_abstraction` starts.
+    /// Stroke simplification with distance (thesis 7.3; pen-and-ink's fewer, lighter strokes
+    /// for the background): the share of the way to paper that the hatch tone is lifted at
+    /// `abstraction_far` and beyond (along the same curve as `distance_abstraction`), so far
+    /// surfaces keep the strokes of their darkest parts only; the TAM's nested tones drop
+    /// strokes one by one as the distance grows, without popping. 0 off.
+    distance_simplification: f32 = 0.0, 0..=1;
+    /// Distance from the eye in metres (along the view) where `distance_abstraction` and
+    /// `distance_simplification` start.
     abstraction_near: f32 = 30.0, 0..=100000;
-    /// Distance from the eye in metres where `distance_abstraction` is reached in full (at
-    /// least `abstraction_near`).
+    /// Distance from the eye in metres where `distance_abstraction` and
+    /// `distance_simplification` are reached in full (at least `abstraction_near`).
     abstraction_far: f32 = 150.0, 0..=100000;
     /// How leaves of plants at full detail are drawn: `original` (the model's leaf geometry),
     /// `billboard` (a camera-facing quad per leaf, SPEC R2), `reoriented` (each leaf's quad
@@ -578,6 +585,7 @@ impl Style {
         Style {
             hlp_abstraction: to(self.hlp_abstraction, 0.0),
             distance_abstraction: to(self.distance_abstraction, 0.0),
+            distance_simplification: to(self.distance_simplification, 0.0),
             normal_blend: to(self.normal_blend, 0.0),
             contour_threshold: to(self.contour_threshold, PHOTOREAL_CONTOUR_THRESHOLD),
             contour_strength: to(self.contour_strength, 0.0),

@@ -50,6 +50,13 @@ gpu_block! {
         pub hatch_strength: f32,
         /// Hatch brightness (tone lift, thesis 8.2.7).
         pub hatch_brightness: f32,
+        /// The hatch tone's lift towards paper far away ([`Style::distance_simplification`]),
+        /// from `abstraction_near` (none) to `abstraction_far` (all of it), metres of depth.
+        pub distance_simplification: f32,
+        /// See `distance_simplification`.
+        pub abstraction_near: f32,
+        /// See `distance_simplification`.
+        pub abstraction_far: f32,
         /// How much surface colour shows (thesis 6.2).
         pub color: f32,
         /// Colour saturation.
@@ -138,6 +145,9 @@ impl PostStyle {
             roll: Vec2f([roll.cos(), roll.sin()]),
             hatch_strength: style.hatch_strength,
             hatch_brightness: style.hatch_brightness,
+            distance_simplification: style.distance_simplification,
+            abstraction_near: style.abstraction_near,
+            abstraction_far: style.abstraction_far.max(style.abstraction_near + 0.01),
             color: style.color,
             color_saturation: style.color_saturation,
             gooch: style.gooch,
