@@ -2,7 +2,8 @@
 // composed sketch, the terrain's crease lines — valley bottoms (the DEM's drainage network,
 // `prep::creases`), ridge crests (the inverted DEM's) and breaks of slope — as pen lines of constant width on
 // screen, in the terrain style's ink, fixed to the ground. One quad per segment (six vertices,
-// instanced), its ends extended by half a width so consecutive segments join. The blocks
+// instanced) of those above the style's thresholds (`render::creases::CreaseSet` orders them so
+// they are two prefixes), its ends extended by half a width so consecutive segments join. The blocks
 // `marks` (the frame's camera, `render::marks::Marks`), the G-buffer's linear depth
 // `depth_tex` and the segments `creases` are declared ahead of this file.
 //
@@ -37,7 +38,9 @@ fn linear_depth(p: vec3<f32>) -> f32 {
 @vertex
 fn vs_creases(@builtin(vertex_index) vertex: u32, @builtin(instance_index) instance: u32) -> CreaseOut {
     use_style(LAYER_TERRAIN << LAYER_SHIFT);
-    let line = creases[instance];
+    // The frame's instances are the valleys and ridges above their threshold (the buffer's
+    // first `crease_areas`), then the breaks of slope above theirs (from `first_break`).
+    let line = creases[select(instance - marks.crease_areas + marks.first_break, instance, instance < marks.crease_areas)];
     var out: CreaseOut;
     // Outside the clip volume: a segment left out draws nothing.
     out.clip = vec4<f32>(2.0, 2.0, 2.0, 1.0);

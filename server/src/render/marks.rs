@@ -4,6 +4,7 @@
 //! handful of instanced quads read from one uniform block; a frame without pins or split does
 //! not run the pass at all.
 
+use super::creases::CreaseCounts;
 use super::uniforms::{Mat4f, Vec2f, Vec3f, Vec4f, gpu_block};
 use crate::fields::legend::Canvas;
 use crate::scene::camera::Camera;
@@ -81,6 +82,12 @@ gpu_block! {
         pub glyph_box: Vec4f,
         /// The atlas cell of a digit, texels (its gutter included).
         pub glyph_cell: Vec2f,
+        /// The creases pass's instances: the first this many are the first segments of the
+        /// crease buffer (valleys and ridges), the rest count from `first_break` (breaks of
+        /// slope; [`crate::render::creases::CreaseSet`]).
+        pub crease_areas: u32,
+        /// Where the breaks of slope begin in the crease buffer.
+        pub first_break: u32,
         /// The pins, farthest first, in rows of [`PIN_ROW`].
         pub pins: [[PinMark; PIN_ROW]; MAX_PINS / PIN_ROW],
     }
@@ -125,6 +132,14 @@ impl Marks {
             *slot = PinMark { position: pin.position.into(), number: pin.number, category: u32::from(pin.category) };
         }
         marks
+    }
+
+    /// This block with the crease segments a frame draws (`counts`), the breaks of slope
+    /// from `first_break` in the crease buffer.
+    pub fn with_creases(mut self: Box<Marks>, counts: CreaseCounts, first_break: u32) -> Box<Marks> {
+        self.crease_areas = counts.areas;
+        self.first_break = first_break;
+        self
     }
 
     /// Instances the marks pass draws: one quad per pin, one for the split line.

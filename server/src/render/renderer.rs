@@ -4,6 +4,7 @@
 
 use super::art_textures::{ArtKind, ArtMap, ArtMapSet, ArtTextures};
 use super::compare::{Compare, Split};
+use super::creases::CreaseCounts;
 use super::gbuffer::{GeometryFrame, GeometryPass, LayerStyle, layer_uniforms, render_target};
 use super::layer_code::LayerCode;
 use super::marks::{GlyphAtlas, Marks, Pin};
@@ -466,7 +467,7 @@ impl Renderer {
             Resource::HatchColors => self.projection.hatch_colors().as_entire_binding(),
             Resource::Glyphs => view(&self.glyph_texture),
             Resource::CoverClasses => self.scene.cover_buffer().as_entire_binding(),
-            Resource::CreaseLines => self.scene.crease_lines().0.as_entire_binding(),
+            Resource::CreaseLines => self.scene.crease_lines().buffer.as_entire_binding(),
             Resource::Marks => frame.marks.map(wgpu::Buffer::as_entire_binding).ok_or(RenderError::Gpu {
                 stage: "frame",
                 message: "the marks block is read while no marks are drawn".into(),
@@ -508,17 +509,22 @@ impl Renderer {
         let split_x = split.and_then(|s| s.x);
         // The terrain's crease lines, when its style draws them (the marks block carries the
         // camera for both passes).
-        let (_, crease_count) = self.scene.crease_lines();
-        let creases = if params[LayerCode::TERRAIN.slot()].terrain_creases > 0.0 { crease_count } else { 0 };
-        let marks = (!request.pins.is_empty() || split_x.is_some() || creases > 0)
-            .then(|| Marks::new(camera, (width, height), request.pins, split_x, &self.glyphs));
+        let terrain = &params[LayerCode::TERRAIN.slot()];
+        let creases = match terrain.terrain_creases > 0.0 {
+            true => self.scene.crease_lines().drawn(terrain.terrain_crease_area, terrain.terrain_break_angle),
+            false => CreaseCounts::default(),
+        };
+        let marks = (!request.pins.is_empty() || split_x.is_some() || creases.instances() > 0).then(|| {
+            let first_break = self.scene.crease_lines().first_break();
+            Marks::new(camera, (width, height), request.pins, split_x, &self.glyphs).with_creases(creases, first_break)
+        });
         // Pipelines specialised for what this frame's styles and data need.
         let context = FrameContext {
             device,
             spec: Specialization::for_frame(&params, data.has_hatch_colors(), data_runs),
             depth: Some(&targets.gbuffer.depth),
             marks: marks.as_ref().map_or(0, |m| m.instances()),
-            creases,
+            creases: creases.instances(),
         };
         let post_buffers: Vec<wgpu::Buffer> = (0..sams.len())
             .map(|group| {

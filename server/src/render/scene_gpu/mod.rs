@@ -19,7 +19,7 @@ mod upload;
 pub use cull::{DrawStats, LayerDraw, VisibleSet, frustum_planes};
 
 use super::bake::Baker;
-use super::creases::crease_buffer;
+use super::creases::CreaseSet;
 use super::gbuffer::{GeometryPass, Instance, Surface, object_id};
 use super::ground_cover::cover_buffer;
 use super::layer_code::LayerCode;
@@ -150,8 +150,8 @@ pub struct SceneGpu {
     instance_buffer: wgpu::Buffer,
     /// The land-cover classes of the terrain's drape ([`crate::render::ground_cover`]).
     cover: wgpu::Buffer,
-    /// The terrain's crease lines ([`crate::render::creases`]) and their count.
-    creases: (wgpu::Buffer, u32),
+    /// The terrain's crease lines ([`crate::render::creases`]).
+    creases: CreaseSet,
     /// The reference coordinates of a frame, grown when a frame needs more.
     reference_buffer: std::sync::Mutex<wgpu::Buffer>,
     /// GPU memory of everything above.
@@ -183,7 +183,7 @@ impl SceneGpu {
             breaks = count(CreaseKind::Break),
             "terrain crease lines"
         );
-        let creases = crease_buffer(device, &segments);
+        let creases = CreaseSet::new(device, &segments);
         progress.report(Stage::Preprocessing, 0.2);
         let baker = Baker::new(device, &pass.material_layout);
         let mut species = Vec::with_capacity(scene.species.len());
@@ -316,9 +316,9 @@ impl SceneGpu {
         &self.cover
     }
 
-    /// The storage buffer of the terrain's crease lines and how many it holds.
-    pub fn crease_lines(&self) -> (&wgpu::Buffer, u32) {
-        (&self.creases.0, self.creases.1)
+    /// The terrain's crease lines on the GPU.
+    pub fn crease_lines(&self) -> &CreaseSet {
+        &self.creases
     }
 
     /// Estimated GPU memory of the scene in bytes (see [`super::Renderer::gpu_bytes`]).
