@@ -55,13 +55,15 @@ fn tam_ink(coords: vec2<f32>, base: i32, darkness: f32, lod: f32) -> f32 {
     return 1.0 - mix(a, b, f);
 }
 
-// How many TAM layers the pixel's strokes blend: 1 (its one set of hatch coordinates), or 4
-// for object-space terrain (two orientations at two scales, see `stroke_layer`). A loop over
-// this count rather than a branch: lavapipe runs both sides of a branch for every pixel, but
-// leaves a loop as soon as all pixels of its group are done, so plants pay for one layer.
-fn stroke_layers(p: vec2<i32>) -> i32 {
+// How many TAM layers the pixel's strokes blend: 1 (its one set of hatch coordinates), or for
+// object-space terrain 4 (two orientations at two scales, see `stroke_layer`), 2 where one
+// orientation has all the weight (`second`, its share, is 0 or 1: half the ground, as the
+// orientation weights are sharpened). A loop over this count rather than a branch: lavapipe
+// runs both sides of a branch for every pixel, but leaves a loop as soon as all pixels of its
+// group are done, so plants pay for one layer and ground of one direction for two.
+fn stroke_layers(p: vec2<i32>, second: f32) -> i32 {
     let terrain = post.terrain_strokes != TERRAIN_IMAGE && is_terrain(textureLoad(id_tex, p, 0).xy);
-    return select(1, 4, terrain);
+    return select(1, select(4, 2, second <= 0.0 || second >= 1.0), terrain);
 }
 
 // One TAM layer of the pixel's strokes: its hatch coordinates, weight and mip level. Layer 0
@@ -88,20 +90,23 @@ struct StrokeFrame {
 };
 
 fn stroke_frame(p: vec2<i32>) -> StrokeFrame {
-    let layers = stroke_layers(p);
+    let second = textureLoad(depth_tex, p, 0).g;
+    let layers = stroke_layers(p, second);
     // The TAM mip level follows the texture's tiles per pixel, so strokes keep their width
     // on screen.
     let normal_w = textureLoad(normal_tex, p, 0).w;
     let lod = log2(max(normal_w * post.tam_size, 1e-4));
-    let second = textureLoad(depth_tex, p, 0).g;
     let coarse = saturate(log2(normal_w * post.terrain_tile));
     return StrokeFrame(textureLoad(hatch_tex, p, 0), lod, second, coarse, layers);
 }
 
-fn stroke_layer(frame: StrokeFrame, layer: i32) -> StrokeLayer {
+fn stroke_layer(frame: StrokeFrame, index: i32) -> StrokeLayer {
     if frame.layers == 1 {
         return StrokeLayer(frame.hatch.xy, 1.0, frame.lod);
     }
+    // Of two layers, the two scales of the one orientation with weight: layers 0 and 2, or 1
+    // and 3.
+    let layer = select(index, 2 * index + select(0, 1, frame.second >= 1.0), frame.layers == 2);
     let second = (layer & 1) == 1;
     let coarse = layer >= 2;
     let weight = select(1.0 - frame.second, frame.second, second) * select(1.0 - frame.coarse, frame.coarse, coarse);
