@@ -282,7 +282,8 @@ fn run_style(
         encode_jpeg(&image)?;
         passes.entry("encode".into()).or_default().push(started.elapsed().as_secs_f64() * 1e3);
     }
-    let stats = renderer.draw_stats(&FrameRequest::new(&cameras[cameras.len() / 2], Style::default(), w, h))?;
+    // What this style draws (leaf particles and substitution shapes change the triangles).
+    let stats = renderer.draw_stats(&FrameRequest::new(&cameras[cameras.len() / 2], style, w, h))?;
     let frame_ms = Stat::of(&frames);
     Ok(StyleRun {
         style: name.to_owned(),
