@@ -370,11 +370,16 @@ fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>, land: CoverStyle) -> Terrain
     // view keep their spacing on screen (the scale grows with the foreshortening) and strokes
     // running towards the eye their width; along the strokes the footprint may be at most
     // TERRAIN_ANISOTROPY times longer, so their dashes do not shrink below a few pixels.
+    // Maps whose strokes have no direction (stipples, scribbles: `Tam::directional`) are
+    // sized by the footprint's area, so they are not stretched along the strokes.
     let along_dir = normalize(d);
     let across_dir = vec2<f32>(-along_dir.y, along_dir.x);
     let across = length(vec2<f32>(dot(across_dir, dx), dot(across_dir, dy)));
     let along = length(vec2<f32>(dot(along_dir, dx), dot(along_dir, dy)));
-    let metres_per_px = clamp(across, along / TERRAIN_ANISOTROPY, sqrt(across * along) * 2.0);
+    let tam = select(layer.hatch_map, u32(land.hatch_map), land.hatch_map >= 0);
+    let directional = tam >= 32u || ((frame.directional_tams >> tam) & 1u) == 1u;
+    let area = sqrt(length(dx) * length(dy));
+    let metres_per_px = select(area, clamp(across, along / TERRAIN_ANISOTROPY, area * 2.0), directional);
     let scale = exp2(floor(log2(max(metres_per_px * layer.terrain_tile, 1e-6))));
     let x = fract(atan2(d.y, d.x) / PI) * TERRAIN_ORIENTATIONS;
     let a = floor(x);

@@ -275,3 +275,12 @@ fn tam_style_serialises_in_snake_case() {
     let style: TamStyle = serde_json::from_str("\"stipple\"").expect("json");
     assert_eq!(style, TamStyle::Stipple);
 }
+
+#[test]
+fn lines_and_cross_hatching_are_directional_stipples_and_scribbles_are_not() {
+    for (style, tam) in tams() {
+        let coherence = tam.direction_coherence();
+        let expected = matches!(style, TamStyle::Lines | TamStyle::CrossHatch);
+        assert_eq!(tam.directional(), expected, "{style:?}: coherence {coherence}");
+    }
+}

@@ -19,6 +19,8 @@ pub struct GpuTam {
     pub view: wgpu::TextureView,
     pub levels: u32,
     pub size: u32,
+    /// Whether its strokes run in one direction ([`Tam::directional`]).
+    pub directional: bool,
 }
 
 /// The most art maps of one kind a renderer holds (styles index them with 0..=255).
@@ -119,6 +121,14 @@ pub struct ArtTextures {
     pub maps: ArtMapSet,
 }
 
+impl ArtTextures {
+    /// Bit `i` set where TAM `i` is directional ([`GpuTam::directional`]; at most
+    /// [`MAX_ART_MAPS`] = 32 TAMs).
+    pub fn directional_tams(&self) -> u32 {
+        self.tams.iter().enumerate().filter(|(_, t)| t.directional).fold(0, |mask, (i, _)| mask | 1 << i)
+    }
+}
+
 /// The default TAMs, in index order: lines, cross-hatching, scribbles, stipples.
 pub const DEFAULT_TAM_STYLES: [TamStyle; 4] =
     [TamStyle::Lines, TamStyle::CrossHatch, TamStyle::Scribble, TamStyle::Stipple];
@@ -158,7 +168,7 @@ fn upload_tams(device: &wgpu::Device, queue: &wgpu::Queue, tams: &[&Tam]) -> Gpu
         dimension: Some(wgpu::TextureViewDimension::D2Array),
         ..Default::default()
     });
-    GpuTam { view, levels: tam.levels.len() as u32, size: tam.size }
+    GpuTam { view, levels: tam.levels.len() as u32, size: tam.size, directional: tam.directional() }
 }
 
 /// The array texture of every TAM (see [`ArtTextures::all_tams`]).

@@ -368,6 +368,36 @@ impl Tam {
         let ink: u64 = img.as_raw().iter().map(|&v| u64::from(255 - v)).sum();
         (ink as f64 / (255.0 * img.as_raw().len() as f64)) as f32
     }
+
+    /// How much the strokes of the middle tone share one direction: the coherence
+    /// (λ₁ − λ₂) / (λ₁ + λ₂) of the structure tensor of its finest image (Σ of ∇I ∇Iᵀ over the
+    /// tile, wrapping at its edges), 1 for parallel lines, near 0 for dots or scribbles of every
+    /// direction. It decides whether the terrain sizes the map's strokes by the ground's
+    /// footprint across them (`shaders/gbuffer.wgsl` `terrain_hatch`).
+    pub fn direction_coherence(&self) -> f32 {
+        let img = &self.levels[self.levels.len() / 2][0];
+        let (w, h) = img.dimensions();
+        let at = |x: u32, y: u32| f64::from(img.get_pixel(x % w, y % h)[0]);
+        let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
+        for y in 0..h {
+            for x in 0..w {
+                let gx = at(x + 1, y) - at(x, y);
+                let gy = at(x, y + 1) - at(x, y);
+                (xx, xy, yy) = (xx + gx * gx, xy + gx * gy, yy + gy * gy);
+            }
+        }
+        let trace = xx + yy;
+        if trace <= 0.0 {
+            return 0.0;
+        }
+        (((xx - yy).powi(2) + 4.0 * xy * xy).sqrt() / trace) as f32
+    }
+
+    /// Whether the map's strokes run in one direction ([`Tam::direction_coherence`] above a
+    /// half): lines and cross-hatching are, stipples and scribbles are not.
+    pub fn directional(&self) -> bool {
+        self.direction_coherence() > 0.5
+    }
 }
 
 /// Silhouette art map: four silhouette stroke styles in the RGBA channels of one image, each

@@ -114,6 +114,10 @@ gpu_block! {
         pub plan_metres_per_pixel: f32,
         /// cos and sin of −roll (the hatch coordinates turn against the camera roll).
         pub roll: Vec2f,
+        /// Bit `i` set where TAM `i`'s strokes run in one direction
+        /// ([`super::art_textures::ArtTextures::directional_tams`]): the terrain sizes those by
+        /// the ground's footprint across the strokes, the others by its area.
+        pub directional_tams: u32,
     }
 }
 
@@ -170,6 +174,8 @@ gpu_block! {
         /// The largest tile of the terrain's object-space strokes on screen, in pixels
         /// ([`super::style::Style::terrain_tile`]).
         pub terrain_tile: f32,
+        /// The style's TAM index (the terrain's strokes where its land-cover class has none).
+        pub hatch_map: u32,
         /// Leaf mode ([`super::style::LeafMode`]: 0 original, 1 billboard, 2 reoriented,
         /// 3 elliptical, 4 shapes).
         pub leaf_mode: u32,
@@ -208,6 +214,7 @@ impl LayerStyle {
             image_hatch_scale: style.image_hatch_scale,
             terrain_strokes: style.terrain_stroke_direction.code(),
             terrain_tile: style.terrain_tile(),
+            hatch_map: style.hatch_map as u32,
             leaf_mode: style.leaf_mode as u32,
             leaf_size: style.leaf_size,
             leaf_shape: style.leaf_shape,
@@ -221,8 +228,9 @@ impl LayerStyle {
 }
 
 impl GeometryFrame {
-    /// The uniforms for `camera` rendering a `width` × `height` image.
-    pub fn new(camera: &Camera, width: u32, height: u32) -> GeometryFrame {
+    /// The uniforms for `camera` rendering a `width` × `height` image with the TAMs whose bits
+    /// `directional_tams` sets directional.
+    pub fn new(camera: &Camera, width: u32, height: u32, directional_tams: u32) -> GeometryFrame {
         let view = camera.view();
         let roll = -camera.roll.to_radians();
         GeometryFrame {
@@ -234,6 +242,7 @@ impl GeometryFrame {
             height: height as f32,
             plan_metres_per_pixel: camera.plan_metres_per_pixel(width).unwrap_or(0.0),
             roll: Vec2f([roll.cos(), roll.sin()]),
+            directional_tams,
         }
     }
 

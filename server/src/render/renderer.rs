@@ -328,7 +328,7 @@ impl Renderer {
         let device = &self.gpu.device;
         let frame_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("frame"),
-            contents: &uniforms::bytes(&GeometryFrame::new(camera, width, height)),
+            contents: &uniforms::bytes(&GeometryFrame::new(camera, width, height, self.art.directional_tams())),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let layer_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
