@@ -37,22 +37,22 @@ fn blurred_tone(p: vec2<i32>) -> f32 {
 }
 
 // Tonal art map lookup (Praun et al., thesis 6.1) at hatch coordinates `coords` in the TAM whose
-// first tone level is array layer `base`: the darkness is placed between the two tone levels
-// whose mean darkness brackets it (level i of n aims at 0.1 + 0.8 i / (n - 1),
-// `artmaps::tone_target`; below level 0 it fades to paper) and the two are blended. Returns ink
-// coverage 0..1.
+// first array layer is `base`: the darkness is placed between the two tone levels whose mean
+// darkness brackets it (level i of n aims at 0.1 + 0.8 i / (n - 1), `artmaps::tone_target`;
+// below level 0 it fades to paper) and the two are blended. Layer j of a TAM holds levels j - 1
+// (paper for j = 0) and j in red and green (`art_textures::upload_tams`), so one lookup reads
+// both. Returns ink coverage 0..1.
 fn tam_ink(coords: vec2<f32>, base: i32, darkness: f32, lod: f32) -> f32 {
     let levels = i32(post.tam_levels);
     let step = 0.8 / f32(levels - 1);
     let position = select((darkness - 0.1) / step, darkness / 0.1 - 1.0, darkness < 0.1);
-    let lo = i32(floor(position));
-    let f = position - floor(position);
-    var a = 1.0;
-    if lo >= 0 {
-        a = textureSampleLevel(tam, tam_sampler, coords, base + min(lo, levels - 1), lod).r;
-    }
-    let b = textureSampleLevel(tam, tam_sampler, coords, base + clamp(lo + 1, 0, levels - 1), lod).r;
-    return 1.0 - mix(a, b, f);
+    let pair = textureSampleLevel(tam, tam_sampler, coords, base + clamp(i32(floor(position)) + 1, 0, levels), lod).rg;
+    return 1.0 - mix(pair.r, pair.g, position - floor(position));
+}
+
+// The first array layer of TAM `index` (each takes `tam_levels` + 1, `tam_ink`).
+fn tam_base(index: i32) -> i32 {
+    return index * (i32(post.tam_levels) + 1);
 }
 
 // How many TAM layers the pixel's strokes blend: 1 (its one set of hatch coordinates), or for
@@ -146,7 +146,7 @@ fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
     if post.hatch_strength <= 0.0 {
         return 0.0;
     }
-    let base = data_tam_layer(data_at(p), i32(post.tam_levels));
+    let base = tam_base(data_tam_index(data_at(p)));
     return stroke_ink(p, base, 1.0 - t, vec2<f32>(1.0, 0.0)) * post.hatch_strength;
 }
 
@@ -171,7 +171,7 @@ fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
     if !HATCH_COLORS || all(darkness <= vec3<f32>(0.0)) {
         return rgb;
     }
-    let base = i32(post.hatch_map) * i32(post.tam_levels);
+    let base = tam_base(i32(post.hatch_map));
     return rgb * hatch_color_filter(p, hatch_colors.slots[0], darkness.x, base)
         * hatch_color_filter(p, hatch_colors.slots[1], darkness.y, base)
         * hatch_color_filter(p, hatch_colors.slots[2], darkness.z, base);

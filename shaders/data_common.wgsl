@@ -19,9 +19,9 @@ fn data_tone(d: vec4<u32>, t: f32) -> f32 {
     return mix(t, tone.x, tone.y);
 }
 
-// D3 hatch pattern: the first layer of the pixel's TAM in the array of all TAMs.
-fn data_tam_layer(d: vec4<u32>, levels: i32) -> i32 {
-    return i32(d.z & 0xffu) * levels;
+// D3 hatch pattern: the index of the pixel's TAM among all TAMs.
+fn data_tam_index(d: vec4<u32>) -> i32 {
+    return i32(d.z & 0xffu);
 }
 
 // D3 silhouette style: the SAM channel of the pixel's label, else `by_tone`.

@@ -111,8 +111,9 @@ impl ArtMapSet {
 /// The art maps a renderer can use, addressed by index from the style.
 pub struct ArtTextures {
     pub tams: Vec<GpuTam>,
-    /// Every TAM in one 2D array texture, TAM `i`'s tone level `l` at layer `i · levels + l`,
-    /// so a pass can pick the TAM per pixel (hatch pattern per label, thesis Table 9.1).
+    /// Every TAM in one 2D array texture, TAM `i`'s pair of tone levels `l − 1`, `l` at layer
+    /// `i · (levels + 1) + l` ([`upload_tams`]), so a pass can pick the TAM per pixel (hatch
+    /// pattern per label, thesis Table 9.1).
     pub all_tams: wgpu::TextureView,
     pub sams: Vec<wgpu::TextureView>,
     pub tam_sampler: wgpu::Sampler,
@@ -133,24 +134,34 @@ impl ArtTextures {
 pub const DEFAULT_TAM_STYLES: [TamStyle; 4] =
     [TamStyle::Lines, TamStyle::CrossHatch, TamStyle::Scribble, TamStyle::Stipple];
 
-/// Uploads `tams` (same size, levels and mips) into one array texture, tone levels in order.
+/// Uploads `tams` (same size, levels and mips) into one array texture of tone-level pairs:
+/// each TAM of `n` levels takes `n + 1` layers ([`tam_layers`]), layer `j` holding level
+/// `j − 1` in red (paper for `j = 0`) and level `j` in green (the darkest level again for
+/// `j = n`), so the compose pass blends the two levels that bracket a tone from one lookup
+/// (`tam_ink` in `shaders/compose.wgsl`; lavapipe pays per texture lookup).
 fn upload_tams(device: &wgpu::Device, queue: &wgpu::Queue, tams: &[&Tam]) -> GpuTam {
     let tam = tams[0];
     let mips = tam.levels[0].len() as u32;
-    let layers = tams.iter().map(|t| t.levels.len() as u32).sum();
+    let layers = tams.iter().map(|t| tam_layers(t.levels.len()) as u32).sum();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some("tam"),
         size: wgpu::Extent3d { width: tam.size, height: tam.size, depth_or_array_layers: layers },
         mip_level_count: mips,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::R8Unorm,
+        format: wgpu::TextureFormat::Rg8Unorm,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    for (layer, level) in tams.iter().flat_map(|t| &t.levels).enumerate() {
-        for (mip, image) in level.iter().enumerate() {
+    let pairs = tams.iter().flat_map(|t| {
+        let n = t.levels.len();
+        (0..=n).map(move |j| (j.checked_sub(1).map(|lighter| &t.levels[lighter]), &t.levels[j.min(n - 1)]))
+    });
+    for (layer, (lighter, darker)) in pairs.enumerate() {
+        for (mip, image) in darker.iter().enumerate() {
             let (w, h) = image.dimensions();
+            let red = |i: usize| lighter.map_or(u8::MAX, |levels| levels[mip].as_raw()[i]);
+            let texels: Vec<u8> = image.as_raw().iter().enumerate().flat_map(|(i, &g)| [red(i), g]).collect();
             queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture: &texture,
@@ -158,8 +169,8 @@ fn upload_tams(device: &wgpu::Device, queue: &wgpu::Queue, tams: &[&Tam]) -> Gpu
                     origin: wgpu::Origin3d { x: 0, y: 0, z: layer as u32 },
                     aspect: wgpu::TextureAspect::All,
                 },
-                image,
-                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(w), rows_per_image: Some(h) },
+                &texels,
+                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(2 * w), rows_per_image: Some(h) },
                 wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
             );
         }
@@ -169,6 +180,12 @@ fn upload_tams(device: &wgpu::Device, queue: &wgpu::Queue, tams: &[&Tam]) -> Gpu
         ..Default::default()
     });
     GpuTam { view, levels: tam.levels.len() as u32, size: tam.size, directional: tam.directional() }
+}
+
+/// The array layers a TAM of `levels` tone levels takes on the GPU: its `levels + 1` pairs of
+/// adjacent levels (see [`upload_tams`]).
+pub fn tam_layers(levels: usize) -> usize {
+    levels + 1
 }
 
 /// The array texture of every TAM (see [`ArtTextures::all_tams`]).
@@ -271,7 +288,7 @@ impl ArtTextures {
                         )));
                     }
                 }
-                let layers = (count + usize::from(index == count)) * tam.levels.len();
+                let layers = (count + usize::from(index == count)) * tam_layers(tam.levels.len());
                 let max_layers = device.limits().max_texture_array_layers as usize;
                 if layers > max_layers {
                     return Err(refuse(format!(
