@@ -304,3 +304,30 @@ fn render_takes_level_of_detail_thresholds_and_refuses_bad_ones() {
         assert!(!output.status.success() && stderr.contains(says), "--lod {lod}: {stderr}");
     }
 }
+
+#[test]
+fn a_cli_error_is_a_message_naming_the_file_not_a_debug_dump() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let missing = dir.path().join("no such scene.toml");
+    // Even with backtraces asked for in the environment (a developer's shell), a user reads a
+    // message: what failed, on which file, why, once.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+        .args(["render", "--scene"])
+        .arg(&missing)
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .expect("run landsketch render");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    let error = stderr.lines().find(|l| l.starts_with("Error: ")).unwrap_or_else(|| panic!("no error line: {stderr}"));
+    assert!(error.contains(&missing.display().to_string()) && error.contains("cannot read scene file"), "{error}");
+    assert_eq!(stderr.matches("No such file or directory").count(), 1, "the cause once: {stderr}");
+    assert!(!stderr.contains("backtrace") && !stderr.contains("Caused by") && !stderr.contains("  0: "), "{stderr}");
+    // A cause the message does not quote follows it.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+        .args(["render", "--scene", SAMPLE, "--lod", r#"{"hlp": 1}"#])
+        .output()
+        .expect("run landsketch render");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("Error: --lod {\"hlp\": 1}: invalid JSON\n  caused by: unknown field `hlp`"), "{stderr}");
+}

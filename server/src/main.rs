@@ -286,7 +286,7 @@ struct DataArgs {
     time: Option<String>,
 }
 
-fn main() -> Result<()> {
+fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -294,7 +294,34 @@ fn main() -> Result<()> {
         )
         .with_writer(std::io::stderr)
         .init();
-    match Cli::parse().command {
+    match run(Cli::parse().command) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("{}", error_report(&error));
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// The error as the CLI prints it: its message, then each cause that the message before it
+/// does not already quote (the library's errors name their cause in their own text), and no
+/// stack trace whatever `RUST_BACKTRACE` says: a user reads a message, not a debug dump.
+fn error_report(error: &anyhow::Error) -> String {
+    let mut report = format!("Error: {error}");
+    let mut before = error.to_string();
+    for cause in error.chain().skip(1) {
+        let text = cause.to_string();
+        if !before.contains(&text) {
+            report.push_str(&format!("\n  caused by: {text}"));
+        }
+        before = text;
+    }
+    report
+}
+
+/// Runs one command of the CLI.
+fn run(command: Command) -> Result<()> {
+    match command {
         Command::Render(args) => render(&args),
         Command::Bench(args) => bench(&args),
         Command::Legend(args) => legend(&args),
