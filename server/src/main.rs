@@ -149,7 +149,7 @@ struct CacheArgs {
     no_cache: bool,
     /// Level-of-detail thresholds in projected plant height (pixels), a JSON object of any of
     /// `full_px`, `hlp_px`, `min_px`, `mass_px`, `grid_px`, `fade`, `hlp_budget`, `billboard_budget`,
-    /// `lone_budget`, e.g.
+    /// `lone_budget`, and `force` (one level for every plant: `full`, `hlp` or `plant`), e.g.
     /// `{"mass_px": 16}`.
     #[arg(long, value_name = "JSON")]
     lod: Option<String>,
