@@ -166,10 +166,15 @@ fn compensated_pixels<'a>(
 }
 
 /// Absolute luminance differences between `current` and `previous` after reprojecting each of
-/// the current frame's geometry pixels into the previous frame ([`compensated_pixels`]).
-/// Terrain pixels (by the current frame's object IDs) are also summed on their own.
-pub fn compensated_difference(previous: &MeasuredFrame, current: &MeasuredFrame) -> Difference {
+/// the current frame's geometry pixels into the previous frame ([`compensated_pixels`]), the
+/// terrain pixels (by the current frame's object IDs) also summed on their own; and the same
+/// as an image, to see where flicker comes from: white where the pixels agree (or were not
+/// compared), darker the more they differ (a difference of 0.5 or more is black). One pass
+/// over the pixels gives both.
+pub fn compensated_difference(previous: &MeasuredFrame, current: &MeasuredFrame) -> (Difference, image::GrayImage) {
+    let (w, h) = current.image.dimensions();
     let mut diff = Difference::default();
+    let mut map = image::GrayImage::from_pixel(w, h, image::Luma([255]));
     for pixel in compensated_pixels(previous, current) {
         diff.sum += pixel.difference;
         diff.count += 1;
@@ -177,21 +182,10 @@ pub fn compensated_difference(previous: &MeasuredFrame, current: &MeasuredFrame)
             diff.terrain_sum += pixel.difference;
             diff.terrain_count += 1;
         }
-    }
-    diff
-}
-
-/// The motion-compensated difference of `current` to `previous` as an image: white where the
-/// pixels agree (or were not compared), darker the more they differ (a difference of 0.5 or
-/// more is black), to see where flicker comes from.
-pub fn difference_map(previous: &MeasuredFrame, current: &MeasuredFrame) -> image::GrayImage {
-    let (w, h) = current.image.dimensions();
-    let mut map = image::GrayImage::from_pixel(w, h, image::Luma([255]));
-    for pixel in compensated_pixels(previous, current) {
         let dark = (pixel.difference * 2.0 * 255.0).min(255.0) as u8;
         map.put_pixel(pixel.x, pixel.y, image::Luma([255 - dark]));
     }
-    map
+    (diff, map)
 }
 
 /// The flicker figures of one style along a camera path.
@@ -218,8 +212,8 @@ pub struct PathMeasurement {
     pub terrain_ink: f64,
     /// The rendered frames, in the path's order.
     pub frames: Vec<image::RgbaImage>,
-    /// The difference map of each consecutive frame pair ([`difference_map`]), in the path's
-    /// order.
+    /// The difference map of each consecutive frame pair ([`compensated_difference`]), in
+    /// the path's order.
     pub difference_maps: Vec<image::GrayImage>,
 }
 
@@ -263,8 +257,9 @@ pub fn measure_path(
         if let Some((prev_cam, prev_image, prev_depth, prev_ids)) = &previous {
             let before = MeasuredFrame { camera: prev_cam, image: prev_image, depth: prev_depth, ids: prev_ids };
             let now = MeasuredFrame { camera, image: &frame.image, depth: &depth, ids: &ids };
-            differences.push(compensated_difference(&before, &now));
-            difference_maps.push(difference_map(&before, &now));
+            let (difference, map) = compensated_difference(&before, &now);
+            differences.push(difference);
+            difference_maps.push(map);
         }
         frames.push(frame.image.clone());
         previous = Some((*camera, frame.image, depth, ids));

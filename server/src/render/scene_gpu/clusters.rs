@@ -6,6 +6,7 @@
 //! the frame's budget of a kind of plants is full of larger ones, smaller clusters of that
 //! kind are not opened.
 
+use super::cull::sphere_outside;
 use super::{Plant, SpeciesGpu};
 use glam::Vec3;
 use std::cmp::Reverse;
@@ -103,7 +104,7 @@ impl PlantClusters {
     pub(super) fn visit(&self, view: &ClusterView<'_>, mut plant: impl FnMut(u32) -> Option<f32>) -> u64 {
         let mut open: Vec<(f32, usize)> = Vec::new();
         for (index, c) in self.clusters.iter().enumerate() {
-            if view.planes.iter().any(|p| p.truncate().dot(c.center) + p.w < -c.radius) {
+            if sphere_outside(view.planes, c.center, c.radius) {
                 continue;
             }
             let largest_px = match view.plan {

@@ -156,7 +156,7 @@ impl SceneGpu {
             }
             let center = plant.world(s.bounds.center);
             let radius = s.bounds.radius * i.offset_scale[3];
-            if planes.iter().any(|p| p.truncate().dot(center) + p.w < -radius) {
+            if sphere_outside(&planes, center, radius) {
                 return None;
             }
             let px = match plan {
@@ -237,7 +237,7 @@ impl SceneGpu {
         // at the chunk's nearest point.
         let mut terrain_ranges = Vec::new();
         for chunk in &self.terrain_chunks {
-            if planes.iter().any(|p| p.truncate().dot(chunk.center) + p.w < -chunk.radius) {
+            if sphere_outside(&planes, chunk.center, chunk.radius) {
                 continue;
             }
             let cell_px = match plan {
@@ -371,6 +371,12 @@ pub fn frustum_planes(view_proj: glam::Mat4) -> [glam::Vec4; 5] {
     [r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 - r2].map(|p| p / p.truncate().length().max(1e-12))
 }
 
+/// Whether the sphere at `center` of `radius` lies wholly outside one of the frustum's
+/// `planes` ([`frustum_planes`]): culled.
+pub(super) fn sphere_outside(planes: &[glam::Vec4; 5], center: Vec3, radius: f32) -> bool {
+    planes.iter().any(|p| p.truncate().dot(center) + p.w < -radius)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -379,7 +385,7 @@ mod tests {
     fn frustum_planes_contain_what_the_camera_sees() {
         let camera = Camera::perspective([0.0, 0.0, 2.0], 0.0, 0.0, 60.0);
         let planes = frustum_planes(camera.projection(1.0) * camera.view());
-        let inside = |p: Vec3, r: f32| planes.iter().all(|q| q.truncate().dot(p) + q.w >= -r);
+        let inside = |p: Vec3, r: f32| !sphere_outside(&planes, p, r);
         assert!(inside(Vec3::new(0.0, 50.0, 2.0), 0.0), "straight ahead");
         assert!(inside(Vec3::new(0.0, 1.0e5, 2.0), 0.0), "far ahead: no far plane");
         assert!(!inside(Vec3::new(0.0, -10.0, 2.0), 1.0), "behind");

@@ -5,7 +5,7 @@
 //! (`mass_cover` in `shaders/gbuffer.wgsl`). A chunk's domes take their hatching from the
 //! grid reference points their plants use far away, so strokes stay put across the blend.
 
-use super::cull::{DrawStats, LayerDraw, ReferenceGrid, References};
+use super::cull::{DrawStats, LayerDraw, ReferenceGrid, References, sphere_outside};
 use super::upload::Uploader;
 use crate::prep::masses::{MASS_CELL, MASS_LEVELS, MassCell, Masses, cell_size, coarsen, dome_mesh, dome_triangles};
 use crate::render::gbuffer::{Instance, Surface, Vertex, average_color, object_id};
@@ -221,9 +221,7 @@ impl MassGpu {
     ) -> Vec<MassDraw> {
         let mut draws: Vec<(f32, MassDraw)> = Vec::new();
         for chunk in &self.chunks {
-            if !layer(chunk.object_id).visible
-                || view.planes.iter().any(|p| p.truncate().dot(chunk.center) + p.w < -chunk.radius)
-            {
+            if !layer(chunk.object_id).visible || sphere_outside(view.planes, chunk.center, chunk.radius) {
                 continue;
             }
             // The smallest its plants get on screen: at the chunk's far side (or everywhere in

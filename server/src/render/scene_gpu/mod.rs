@@ -257,9 +257,9 @@ impl SceneGpu {
             source_triangles,
             "scene uploaded"
         );
-        // Meshes and textures, and at most every plant twice and every mass chunk once per
-        // frame (the reference buffer grows with what a frame draws; it is not counted).
-        // Every plant at two levels, the terrain, and every chunk of masses at two levels.
+        // Meshes and textures, and the most instances a frame draws: every plant at two
+        // levels, the terrain, and every chunk of masses at two levels (the reference buffer
+        // grows with what a frame draws; it is not counted).
         let instance_count = 2 * plants.len() as u64 + 1 + masses.as_ref().map_or(0, |m| 2 * m.chunk_count() as u64);
         let gpu_bytes = up.bytes() + instance_count * std::mem::size_of::<Instance>() as u64;
         let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
