@@ -63,6 +63,9 @@ fn tone(p: vec2<i32>, ids: vec2<u32>) -> f32 {
 // contours, so it is one pixel wide and fixed to the ground like the classes. `here` are the
 // pixel's object IDs.
 fn cover_border(p: vec2<i32>, here: vec2<u32>) -> f32 {
+    if !LAND_COVER {
+        return 0.0;
+    }
     let size = textureDimensions(id_tex);
     let a = cover_index(here);
     var edge = 0.0;

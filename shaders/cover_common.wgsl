@@ -7,9 +7,9 @@
 const COVER_NONE: u32 = 5u;
 
 // The class index of the ID-buffer pair `ids`: a terrain pixel's class, 0 (plain ground)
-// for everything else.
+// for everything else and in frames without land cover (`LAND_COVER`).
 fn cover_index(ids: vec2<u32>) -> u32 {
-    return select(0u, min(ids.y & 0xffffffu, arrayLength(&cover) - 1u), is_terrain(ids));
+    return select(0u, min(ids.y & 0xffffffu, arrayLength(&cover) - 1u), LAND_COVER && is_terrain(ids));
 }
 
 // The tonal art map of a pixel without a hatch-pattern mapping: its land-cover class's, else

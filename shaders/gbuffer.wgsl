@@ -13,6 +13,9 @@
 override SURFACE: u32 = 0u;
 // Whether the pipeline draws leaf particles (`vs_leaf`), which may be elliptical.
 override LEAF_PARTICLES: bool = false;
+// Whether the terrain has land-cover classes (`render::gbuffer::GeometryPass::terrain`):
+// without, its pixels skip the class lookup.
+override LAND_COVER: bool = true;
 
 @group(0) @binding(0) var<uniform> frame: GeometryFrame;
 // Reference texture coordinates R_uv of every (instance, HLP) pair (thesis eq. 6.2).
@@ -360,7 +363,7 @@ fn terrain_hatch(world_xy: vec2<f32>, n: vec3<f32>, land: CoverStyle) -> Terrain
         d = vec2<f32>(-d.y, d.x);
     }
     if strokes == COVER_FURROWS {
-        d = vec2<f32>(cos(land.angle), sin(land.angle));
+        d = land.direction;
     }
     if strokes == COVER_RIPPLES {
         d = vec2<f32>(frame.view[0].x, frame.view[1].x) + vec2<f32>(1e-4, 0.0);
@@ -556,7 +559,10 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBuffer {
     out.hatch = vec4<f32>(t, e);
     if SURFACE == 0u {
         // The land-cover class goes into the terrain's patch ID (which has no HLP).
-        let land = cover_class(in.uv);
+        var land = 0u;
+        if LAND_COVER {
+            land = cover_class(in.uv);
+        }
         out.ids = vec2<u32>(in.ids.x, in.ids.y | land);
         if !image_space {
             let terrain = terrain_hatch(in.object_uv, n, cover[land]);

@@ -17,6 +17,8 @@ override HATCH_COLORS: bool = true;
 override DATA_LAYERS: bool = true;
 // Whether any slot shows surface colour (compose shades none without).
 override SURFACE_COLOR: bool = true;
+// Whether the terrain has land-cover classes (without, every pixel is of the plain ground's).
+override LAND_COVER: bool = true;
 
 // The style of the pixel being shaded; set by each fragment entry point with `use_style`.
 var<private> post: PostStyle;

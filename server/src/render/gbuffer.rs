@@ -438,6 +438,8 @@ pub struct Instance {
 pub struct GeometryPass {
     /// One pipeline per [`Surface`] for meshes (`vs_main`), in the order of [`Surface::ALL`].
     pipelines: [wgpu::RenderPipeline; Surface::ALL.len()],
+    /// The terrain's pipeline for a drape without land-cover classes.
+    bare_terrain: wgpu::RenderPipeline,
     /// The pipeline drawing leaf particles (`vs_leaf`, SPEC R1, R2; foliage).
     pub leaf_pipeline: wgpu::RenderPipeline,
     pub frame_layout: wgpu::BindGroupLayout,
@@ -505,57 +507,62 @@ impl GeometryPass {
         // The pipelines share the instances, the fragment shader and the targets; they differ
         // in their vertices, mesh vertices (`vs_main`) or leaf-particle corners (`vs_leaf`),
         // and in the kind of surface their shader is compiled for.
-        let pipeline_with = |label, entry_point, vertices: wgpu::VertexBufferLayout<'_>, surface: Surface| {
-            let constants =
-                [("SURFACE", surface as u32 as f64), ("LEAF_PARTICLES", f64::from(u8::from(entry_point == "vs_leaf")))];
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &shader,
-                    entry_point: Some(entry_point),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
+        let pipeline_with =
+            |label, entry_point, vertices: wgpu::VertexBufferLayout<'_>, surface: Surface, cover: bool| {
+                let flag = |b: bool| f64::from(u8::from(b));
+                let constants = [
+                    ("SURFACE", surface as u32 as f64),
+                    ("LEAF_PARTICLES", flag(entry_point == "vs_leaf")),
+                    ("LAND_COVER", flag(cover)),
+                ];
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(label),
+                    layout: Some(&layout),
+                    vertex: wgpu::VertexState {
+                        module: &shader,
+                        entry_point: Some(entry_point),
+                        compilation_options: wgpu::PipelineCompilationOptions {
+                            constants: &constants,
+                            ..Default::default()
+                        },
+                        buffers: &[
+                            Some(vertices),
+                            Some(wgpu::VertexBufferLayout {
+                                array_stride: std::mem::size_of::<Instance>() as u64,
+                                step_mode: wgpu::VertexStepMode::Instance,
+                                attributes: &instance_attrs,
+                            }),
+                        ],
                     },
-                    buffers: &[
-                        Some(vertices),
-                        Some(wgpu::VertexBufferLayout {
-                            array_stride: std::mem::size_of::<Instance>() as u64,
-                            step_mode: wgpu::VertexStepMode::Instance,
-                            attributes: &instance_attrs,
-                        }),
-                    ],
-                },
-                primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &shader,
-                    entry_point: Some("fs_main"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
-                    },
-                    targets: &[
-                        target(ALBEDO_FORMAT),
-                        target(NORMAL_FORMAT),
-                        target(LINEAR_DEPTH_FORMAT),
-                        target(ID_FORMAT),
-                        target(HATCH_FORMAT),
-                    ],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let pipelines = Surface::ALL.map(|surface| {
+                    primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: DEPTH_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Greater),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &shader,
+                        entry_point: Some("fs_main"),
+                        compilation_options: wgpu::PipelineCompilationOptions {
+                            constants: &constants,
+                            ..Default::default()
+                        },
+                        targets: &[
+                            target(ALBEDO_FORMAT),
+                            target(NORMAL_FORMAT),
+                            target(LINEAR_DEPTH_FORMAT),
+                            target(ID_FORMAT),
+                            target(HATCH_FORMAT),
+                        ],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+        let mesh_pipeline = |surface: Surface, cover: bool| {
             pipeline_with(
                 "gbuffer",
                 "vs_main",
@@ -565,8 +572,11 @@ impl GeometryPass {
                     attributes: &vertex_attrs,
                 },
                 surface,
+                cover,
             )
-        });
+        };
+        let pipelines = Surface::ALL.map(|surface| mesh_pipeline(surface, true));
+        let bare_terrain = mesh_pipeline(Surface::Terrain, false);
         let leaf_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x2, 2 => Float32x3, 3 => Float32x3,
             4 => Float32x3, 10 => Float32x2, 11 => Float32x4, 12 => Uint32, 13 => Float32, 14 => Float32x3];
         let leaf_pipeline = pipeline_with(
@@ -578,6 +588,7 @@ impl GeometryPass {
                 attributes: &leaf_attrs,
             },
             Surface::Foliage,
+            true,
         );
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("material"),
@@ -590,12 +601,21 @@ impl GeometryPass {
             mipmap_filter: wgpu::MipmapFilterMode::Nearest,
             ..Default::default()
         });
-        GeometryPass { pipelines, leaf_pipeline, frame_layout, material_layout, sampler }
+        GeometryPass { pipelines, bare_terrain, leaf_pipeline, frame_layout, material_layout, sampler }
     }
 
     /// The pipeline drawing meshes of `surface`.
     pub fn pipeline(&self, surface: Surface) -> &wgpu::RenderPipeline {
         &self.pipelines[surface as usize]
+    }
+
+    /// The pipeline drawing the terrain, with or without its land-cover class lookup (a
+    /// terrain without classes skips it: `LAND_COVER` in `shaders/gbuffer.wgsl`).
+    pub fn terrain_pipeline(&self, land_cover: bool) -> &wgpu::RenderPipeline {
+        match land_cover {
+            true => self.pipeline(Surface::Terrain),
+            false => &self.bare_terrain,
+        }
     }
 
     /// Clears the G-buffer and draws every batch of `scene` into it.

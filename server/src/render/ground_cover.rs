@@ -5,7 +5,7 @@
 //! pass shifts its tone and outlines class borders; the data and compose passes pick its
 //! tonal art map.
 
-use super::uniforms::{gpu_block, storage_buffer};
+use super::uniforms::{Vec2f, gpu_block, storage_buffer};
 use crate::scene::cover::{CoverClass, CoverStrokes, Drape};
 
 gpu_block! {
@@ -15,8 +15,9 @@ gpu_block! {
         pub tone: f32,
         /// [`CoverStrokes::code`].
         pub strokes: u32,
-        /// `furrows`: the strokes' direction in radians counter-clockwise from east.
-        pub angle: f32,
+        /// `furrows`: the strokes' direction on the ground (x east, y north), a unit vector
+        /// so the shader does not evaluate its cosine and sine per pixel.
+        pub direction: Vec2f,
         /// Tonal art map index, −1 for the style's.
         pub hatch_map: i32,
         /// 1 where borders with other classes are outlined.
@@ -32,7 +33,7 @@ impl CoverStyle {
             Some(c) => CoverStyle {
                 tone: c.tone,
                 strokes: c.strokes.code(),
-                angle: (90.0 - c.angle).to_radians(),
+                direction: glam::Vec2::from_angle((90.0 - c.angle).to_radians()).into(),
                 hatch_map: c.hatch_map.map_or(-1, |m| m as i32),
                 outline: f32::from(u8::from(c.outline)),
             },

@@ -521,7 +521,7 @@ impl Renderer {
         // Pipelines specialised for what this frame's styles and data need.
         let context = FrameContext {
             device,
-            spec: Specialization::for_frame(&params, data.has_hatch_colors(), data_runs),
+            spec: Specialization::for_frame(&params, data.has_hatch_colors(), data_runs, self.scene.has_land_cover()),
             depth: Some(&targets.gbuffer.depth),
             marks: marks.as_ref().map_or(0, |m| m.instances()),
             creases: creases.instances(),

@@ -38,8 +38,8 @@ impl BindingKind {
 /// Frame-wide facts the post passes' shaders are specialised on (the override constants of
 /// `shaders/post_common.wgsl`). On lavapipe every instruction of a shader runs for every pixel,
 /// whichever way its branches go, so a frame that needs less gets pipelines compiled without
-/// the rest. [`Specialization::default`] leaves out coloured hatchings, data layers and surface
-/// colour: the passes that use no styles or data are compiled with it.
+/// the rest. [`Specialization::default`] leaves out coloured hatchings, data layers, surface
+/// colour and land cover: the passes that use no styles or data are compiled with it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Specialization {
     /// Every style slot holds the same post style: no per-pixel style lookup.
@@ -53,20 +53,22 @@ pub struct Specialization {
     pub data_layers: bool,
     /// Whether any slot shows surface colour; without, compose shades none.
     pub surface_color: bool,
+    /// Whether the terrain has land-cover classes; without, no pass looks one up.
+    pub land_cover: bool,
 }
 
 impl Specialization {
     /// The specialisation of a frame whose style slots have the post parameters `slots`,
-    /// with or without coloured hatchings and data layers.
-    pub fn for_frame(slots: &[PostStyle], hatch_colors: bool, data_layers: bool) -> Specialization {
+    /// with or without coloured hatchings, data layers and land-cover classes.
+    pub fn for_frame(slots: &[PostStyle], hatch_colors: bool, data_layers: bool, land_cover: bool) -> Specialization {
         let uniform_style = slots.windows(2).all(|w| w[0] == w[1]);
         let shared_blur = slots.windows(2).all(|w| w[0].tone_blur == w[1].tone_blur);
         let blur_radius = slots.first().map(|s| s.tone_blur as u32).filter(|_| shared_blur);
         let surface_color = slots.iter().any(|s| s.color > 0.0);
-        Specialization { uniform_style, blur_radius, hatch_colors, data_layers, surface_color }
+        Specialization { uniform_style, blur_radius, hatch_colors, data_layers, surface_color, land_cover }
     }
 
-    fn constants(self) -> [(&'static str, f64); 5] {
+    fn constants(self) -> [(&'static str, f64); 6] {
         let flag = |b: bool| f64::from(u8::from(b));
         [
             ("UNIFORM_STYLE", flag(self.uniform_style)),
@@ -74,6 +76,7 @@ impl Specialization {
             ("HATCH_COLORS", flag(self.hatch_colors)),
             ("DATA_LAYERS", flag(self.data_layers)),
             ("SURFACE_COLOR", flag(self.surface_color)),
+            ("LAND_COVER", flag(self.land_cover)),
         ]
     }
 }
@@ -334,7 +337,7 @@ mod tests {
     #[test]
     fn frames_are_specialised_only_on_what_all_slots_share() {
         let base = Style::default();
-        let one = Specialization::for_frame(&[params(&base); 4], false, false);
+        let one = Specialization::for_frame(&[params(&base); 4], false, false, false);
         let uniform = Specialization {
             uniform_style: true,
             blur_radius: Some(base.tone_blur),
@@ -345,16 +348,17 @@ mod tests {
 
         // Another hatch strength in one slot: styles differ, the blur radius is still shared.
         let strokes = Style { hatch_strength: 0.3, ..base.clone() };
-        let mixed = Specialization::for_frame(&[params(&base), params(&strokes)], true, true);
-        let expected = Specialization { uniform_style: false, hatch_colors: true, data_layers: true, ..uniform };
+        let mixed = Specialization::for_frame(&[params(&base), params(&strokes)], true, true, true);
+        let expected =
+            Specialization { uniform_style: false, hatch_colors: true, data_layers: true, land_cover: true, ..uniform };
         assert_eq!(mixed, expected);
 
         let blurred = Style { tone_blur: base.tone_blur + 1, ..base.clone() };
-        let radii = Specialization::for_frame(&[params(&base), params(&blurred)], false, false);
+        let radii = Specialization::for_frame(&[params(&base), params(&blurred)], false, false, false);
         assert_eq!(radii, Specialization { surface_color: base.color > 0.0, ..Default::default() });
 
         let colour = Style { color: 0.5, ..base.clone() };
-        let coloured = Specialization::for_frame(&[params(&base), params(&colour)], false, false);
+        let coloured = Specialization::for_frame(&[params(&base), params(&colour)], false, false, false);
         assert!(coloured.surface_color);
     }
 }

@@ -53,7 +53,7 @@ impl SceneGpu {
         // The terrain after the vegetation standing on it: where plants and masses cover the
         // ground, the early depth test skips its pixels (lavapipe shades every pixel drawn).
         pass.set_bind_group(0, frame, &layer_offset(LayerCode::TERRAIN.slot()));
-        pass.set_pipeline(geometry.pipeline(Surface::Terrain));
+        pass.set_pipeline(geometry.terrain_pipeline(self.land_cover));
         pass.set_bind_group(1, &self.terrain.material, &[]);
         pass.set_vertex_buffer(0, self.terrain.vertices.slice(..));
         pass.set_index_buffer(self.terrain.indices.slice(..), wgpu::IndexFormat::Uint32);

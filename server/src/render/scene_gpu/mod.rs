@@ -150,6 +150,8 @@ pub struct SceneGpu {
     instance_buffer: wgpu::Buffer,
     /// The land-cover classes of the terrain's drape ([`crate::render::ground_cover`]).
     cover: wgpu::Buffer,
+    /// Whether the drape has any land-cover class (else every pass skips the class lookups).
+    land_cover: bool,
     /// The terrain's crease lines ([`crate::render::creases`]).
     creases: CreaseSet,
     /// The reference coordinates of a frame, grown when a frame needs more.
@@ -280,6 +282,7 @@ impl SceneGpu {
             masses,
             instance_buffer,
             cover: cover_buffer(device, &scene.terrain.drape),
+            land_cover: !scene.terrain.drape.classes.is_empty(),
             creases,
             reference_buffer: std::sync::Mutex::new(reference_buffer(device, 1)),
             gpu_bytes,
@@ -314,6 +317,12 @@ impl SceneGpu {
     /// The storage buffer of the drape's land-cover classes (`cover` in the shaders).
     pub fn cover_buffer(&self) -> &wgpu::Buffer {
         &self.cover
+    }
+
+    /// Whether the terrain's drape has land-cover classes: frames without are drawn with
+    /// pipelines compiled without the class lookups (`LAND_COVER` in the shaders).
+    pub fn has_land_cover(&self) -> bool {
+        self.land_cover
     }
 
     /// The terrain's crease lines on the GPU.
