@@ -312,8 +312,9 @@ pub struct DomeMesh {
     pub positions: Vec<[f32; 3]>,
     /// Smooth shading normals (see [`DOME_NORMAL_SHARE`]).
     pub normals: Vec<[f32; 3]>,
-    /// Per vertex: horizontal distance in metres to the outer edge of the mass (the dome's
-    /// base circle where it faces open ground, larger inside the mass), for its outline.
+    /// Per vertex: distance in metres to the outer edge of the mass (the dome's foot where it
+    /// faces open ground, measured over the dome's surface; negative on the buried skirt;
+    /// larger inside the mass), for its outline.
     pub edge: Vec<f32>,
     /// Per vertex: the position of its cell in the `cells` given to [`dome_mesh`].
     pub cell: Vec<u32>,
@@ -391,12 +392,19 @@ pub fn dome_mesh(cells: &[MassCell], all: &HashMap<(i64, i64), MassCell>, level:
             let n_z = cos_t / half_height;
             let dome = (across * sin_t - slope * n_z).extend(n_z).normalize();
             mesh.normals.push((dome * DOME_NORMAL_SHARE + canopy * (1.0 - DOME_NORMAL_SHARE)).normalize().to_array());
-            // Outward vertices of an edge cell lie their distance from the base ellipse inside
+            // Outward vertices of an edge cell lie their distance from the dome's foot inside
             // the mass, the rest of a cell half a cell more, and each ring of cells in one more.
+            // The distance from the foot runs over the dome's surface: its height above the
+            // ground (negative for the buried skirt, so the interpolated distance is zero where
+            // the dome leaves the ground) plus its inset from the base ellipse. The inset alone
+            // grows only with the square of the height up a steep side, which drew the lower
+            // sides of tall domes seen from the side entirely in outline ink (flat grey blocks
+            // in a forest seen from 1 km).
             let dir = rim.normalize_or_zero();
             let radius = rim.length();
             let outward = open.iter().any(|o| o.dot(dir) > 0.3);
-            let own = if outward { radius * (1.0 - sin_t) } else { 0.5 * (size + radius * (1.0 - sin_t)) };
+            let inset = radius * (1.0 - sin_t);
+            let own = if outward { inset + half_height * cos_t - SKIRT } else { 0.5 * (size + inset) };
             mesh.edge.push((cell.depth.max(1) - 1) as f32 * size + own);
             mesh.cell.push(index as u32);
         };
@@ -480,6 +488,14 @@ mod tests {
         assert!(mesh.normals.iter().all(|n| n[2] > 0.0), "normals face up and out");
         // Every dome's base touches the mass edge only where it faces open ground.
         assert!(mesh.edge.iter().any(|e| *e < 1e-3) && mesh.edge.iter().any(|e| *e > 3.0));
+        // Towards open ground the distance to the edge runs over the dome from its foot: the
+        // buried base ring lies SKIRT below it, and a vertex up the side is at least its height
+        // above the ground away from it (the outline does not climb a steep side); inside the
+        // mass it is at least half a cell.
+        let ground = 100.0;
+        let edges: Vec<(f32, f32)> = mesh.edge.iter().zip(&mesh.positions).map(|(e, p)| (*e, p[2] - ground)).collect();
+        assert!(edges.iter().any(|(e, z)| (*e + SKIRT).abs() < 1e-3 && (*z + SKIRT).abs() < 1e-3));
+        assert!(edges.iter().all(|(e, z)| *e >= z.min(0.5 * MASS_CELL) - 1e-3));
         assert!(mesh.indices.iter().all(|&i| (i as usize) < mesh.positions.len()));
     }
 
