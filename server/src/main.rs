@@ -472,7 +472,7 @@ fn json_object<T: DeserializeOwned>(arg: &str) -> Result<T> {
     } else {
         std::fs::read_to_string(arg).with_context(|| format!("cannot read style file {arg}"))?
     };
-    serde_json::from_str(&text).with_context(|| format!("invalid style JSON (expected an object): {arg}"))
+    serde_json::from_str(&text).with_context(|| format!("invalid style (a JSON object of style fields): {arg}"))
 }
 
 /// The styles the flags give: `--preset`, the `--style` fields and every `--layer-style
