@@ -114,13 +114,12 @@ fn stroke_layer(frame: StrokeFrame, index: i32) -> StrokeLayer {
     return StrokeLayer(coords, weight, frame.lod - select(0.0, 1.0, coarse));
 }
 
-// Ink of the pixel's strokes at `darkness` from the TAM at `base`, its hatch coordinates turned
-// by `rotation` (cos, sin): the variance-preserving blend of its stroke layers (Bénard et al.
+// Ink of the pixel's strokes (`frame`, read once per pixel by `stroke_frame`) at `darkness` from
+// the TAM at `base`, its hatch coordinates turned by `rotation` (cos, sin): the variance-preserving blend of its stroke layers (Bénard et al.
 // 2010 eq. 3, after Heitz and Neyret): m + (Σ w_i·(x_i − m)) / sqrt(Σ w_i²) with m the mean ink
 // of the tone (its darkness), so blended layers keep the contrast of one instead of fading to
 // grey half-strokes; one layer is returned as it is.
-fn stroke_ink(p: vec2<i32>, base: i32, darkness: f32, rotation: vec2<f32>) -> f32 {
-    let frame = stroke_frame(p);
+fn stroke_ink(frame: StrokeFrame, base: i32, darkness: f32, rotation: vec2<f32>) -> f32 {
     var ink = 0.0;
     var squares = 0.0;
     for (var i = 0; i < frame.layers; i++) {
@@ -142,22 +141,22 @@ fn stroke_ink(p: vec2<i32>, base: i32, darkness: f32, rotation: vec2<f32>) -> f3
 
 // Hatching of tone t (1 = white) with the pixel's TAM (its style's, or a hatch-pattern
 // mapping's), by the hatch strength.
-fn hatch_ink(p: vec2<i32>, t: f32) -> f32 {
+fn hatch_ink(p: vec2<i32>, t: f32, strokes: StrokeFrame) -> f32 {
     if post.hatch_strength <= 0.0 {
         return 0.0;
     }
     let base = tam_base(data_tam_index(data_at(p)));
-    return stroke_ink(p, base, 1.0 - t, vec2<f32>(1.0, 0.0)) * post.hatch_strength;
+    return stroke_ink(strokes, base, 1.0 - t, vec2<f32>(1.0, 0.0)) * post.hatch_strength;
 }
 
 // The filter of one hatch-colour slot: strokes of the slot's darkness from the TAM at `base`,
 // at the hatch coordinates rotated by the slot's angle, in the slot's ink at its opacity; 1
 // (white) off the strokes.
-fn hatch_color_filter(p: vec2<i32>, slot: HatchColor, darkness: f32, base: i32) -> vec3<f32> {
+fn hatch_color_filter(strokes: StrokeFrame, slot: HatchColor, darkness: f32, base: i32) -> vec3<f32> {
     if darkness <= 0.0 || slot.opacity <= 0.0 {
         return vec3<f32>(1.0);
     }
-    return mix(vec3<f32>(1.0), slot.color, stroke_ink(p, base, darkness, slot.rotation) * slot.opacity);
+    return mix(vec3<f32>(1.0), slot.color, stroke_ink(strokes, base, darkness, slot.rotation) * slot.opacity);
 }
 
 // Thesis 9.2.2, Fig. 9.3: several fields with equal visual importance as hatchings of different
@@ -166,15 +165,15 @@ fn hatch_color_filter(p: vec2<i32>, slot: HatchColor, darkness: f32, base: i32) 
 // result does not depend on the slots' order and no field hides another (crossing strokes
 // darken); the style's hatch strength and brightness do not apply (the data stay visible in any
 // style).
-fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>) -> vec3<f32> {
+fn hatch_colors_over(p: vec2<i32>, rgb: vec3<f32>, strokes: StrokeFrame) -> vec3<f32> {
     let darkness = data_hatch_darkness(data_at(p));
     if !HATCH_COLORS || all(darkness <= vec3<f32>(0.0)) {
         return rgb;
     }
     let base = tam_base(i32(post.hatch_map));
-    return rgb * hatch_color_filter(p, hatch_colors.slots[0], darkness.x, base)
-        * hatch_color_filter(p, hatch_colors.slots[1], darkness.y, base)
-        * hatch_color_filter(p, hatch_colors.slots[2], darkness.z, base);
+    return rgb * hatch_color_filter(strokes, hatch_colors.slots[0], darkness.x, base)
+        * hatch_color_filter(strokes, hatch_colors.slots[1], darkness.y, base)
+        * hatch_color_filter(strokes, hatch_colors.slots[2], darkness.z, base);
 }
 
 // Thesis 5.2: stylized silhouettes. Search from the pixel along E (the screen projection of the
@@ -273,9 +272,9 @@ fn contour_part(p: vec2<i32>, size: vec2<u32>) -> f32 {
 }
 
 // The final colour: the base with the ink over it, tinted by the data and with the data's
-// coloured hatchings.
-fn finish(p: vec2<i32>, base: vec3<f32>, ink: f32) -> vec4<f32> {
-    return vec4<f32>(hatch_colors_over(p, data_tint(data_at(p), mix(base, post.ink, ink))), 1.0);
+// coloured hatchings (along the pixel's `strokes`).
+fn finish(p: vec2<i32>, base: vec3<f32>, ink: f32, strokes: StrokeFrame) -> vec4<f32> {
+    return vec4<f32>(hatch_colors_over(p, data_tint(data_at(p), mix(base, post.ink, ink)), strokes), 1.0);
 }
 
 // The geometry's pixels (the pipeline's depth test passes only where the G-buffer pass drew).
@@ -286,6 +285,7 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
         discard;
     }
     let size = textureDimensions(contour_tex);
+    let strokes = stroke_frame(p);
     var ink = max(contour_part(p, size), outline_ink(textureLoad(albedo_tex, p, 0).a));
     // The tone is only needed for strokes (a photorealistic style draws none).
     if post.hatch_strength > 0.0 || post.silhouette_strength > 0.0 {
@@ -295,14 +295,14 @@ fn fs_compose(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
         // tones drop far strokes one by one.
         let far = smoothstep(post.abstraction_near, post.abstraction_far, textureLoad(depth_tex, p, 0).r);
         let lift = 1.0 - (1.0 - post.hatch_brightness) * (1.0 - post.distance_simplification * far);
-        ink = max(ink, hatch_ink(p, mix(t, 1.0, lift)));
+        ink = max(ink, hatch_ink(p, mix(t, 1.0, lift), strokes));
         ink = max(ink, silhouette_ink(p, t, size));
     }
     var base = post.paper;
     if SURFACE_COLOR {
         base = mix(base, encode_srgb(surface_color(p)), post.color);
     }
-    return finish(p, base, ink);
+    return finish(p, base, ink, strokes);
 }
 
 // The background's pixels: paper or sky (no contours: they lie on the nearer surface).
@@ -312,5 +312,6 @@ fn fs_sky(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     if !style_of_group(p) {
         discard;
     }
-    return finish(p, mix(post.paper, sky_color(frag.xy, textureDimensions(contour_tex)), post.sky), 0.0);
+    let sky = mix(post.paper, sky_color(frag.xy, textureDimensions(contour_tex)), post.sky);
+    return finish(p, sky, 0.0, stroke_frame(p));
 }
