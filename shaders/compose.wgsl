@@ -114,11 +114,12 @@ fn stroke_layer(frame: StrokeFrame, index: i32) -> StrokeLayer {
     return StrokeLayer(coords, weight, frame.lod - select(0.0, 1.0, coarse));
 }
 
-// Ink of the pixel's strokes (`frame`, read once per pixel by `stroke_frame`) at `darkness` from
-// the TAM at `base`, its hatch coordinates turned by `rotation` (cos, sin): the variance-preserving blend of its stroke layers (Bénard et al.
-// 2010 eq. 3, after Heitz and Neyret): m + (Σ w_i·(x_i − m)) / sqrt(Σ w_i²) with m the mean ink
-// of the tone (its darkness), so blended layers keep the contrast of one instead of fading to
-// grey half-strokes; one layer is returned as it is.
+// Ink of the pixel's strokes (`frame`, read once per pixel by `stroke_frame`) at `darkness`
+// from the TAM at `base`, its hatch coordinates turned by `rotation` (cos, sin): the
+// variance-preserving blend of its stroke layers (Bénard et al. 2010 eq. 3, after Heitz and
+// Neyret): m + (Σ w_i·(x_i − m)) / sqrt(Σ w_i²) with m the mean ink of the tone (its
+// darkness), so blended layers keep the contrast of one instead of fading to grey
+// half-strokes; one layer is returned as it is.
 fn stroke_ink(frame: StrokeFrame, base: i32, darkness: f32, rotation: vec2<f32>) -> f32 {
     var ink = 0.0;
     var squares = 0.0;

@@ -13,7 +13,7 @@
 override SURFACE: u32 = 0u;
 // Whether the pipeline draws leaf particles (`vs_leaf`), which may be elliptical.
 override LEAF_PARTICLES: bool = false;
-// Whether the terrain has land-cover classes (`render::gbuffer::GeometryPass::terrain`):
+// Whether the terrain has land-cover classes (`render::gbuffer::GeometryPass::terrain_pipeline`):
 // without, its pixels skip the class lookup.
 override LAND_COVER: bool = true;
 

@@ -330,4 +330,14 @@ fn a_cli_error_is_a_message_naming_the_file_not_a_debug_dump() {
         .expect("run landsketch render");
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("Error: --lod {\"hlp\": 1}: invalid JSON\n  caused by: unknown field `hlp`"), "{stderr}");
+    // A style object with a field that is not a style field: the field is named, and the
+    // message does not claim the object is not one.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+        .args(["render", "--scene", SAMPLE, "--style", r#"{"mass_outline": 0}"#])
+        .output()
+        .expect("run landsketch render");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("Error: invalid style (a JSON object of style fields): {\"mass_outline\": 0}"), "{stderr}");
+    assert!(stderr.contains("unknown field `mass_outline`") && !stderr.contains("expected an object"), "{stderr}");
 }
