@@ -341,3 +341,30 @@ fn a_cli_error_is_a_message_naming_the_file_not_a_debug_dump() {
     assert!(stderr.contains("Error: invalid style (a JSON object of style fields): {\"mass_outline\": 0}"), "{stderr}");
     assert!(stderr.contains("unknown field `mass_outline`") && !stderr.contains("expected an object"), "{stderr}");
 }
+
+#[test]
+fn bench_lays_its_style_fields_over_every_preset_and_refuses_a_field_that_is_not_one() {
+    let bench = |style: Option<&str>| {
+        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"));
+        command.args(["bench", "--scene", SAMPLE, "--plants", "100", "--styles", "full_npr,half_npr"]);
+        command.args(["--frames", "1", "--width", "96", "--height", "64", "--no-cache", "--json"]);
+        if let Some(style) = style {
+            command.args(["--style", style]);
+        }
+        command.output().expect("run landsketch bench")
+    };
+    // Whether each preset's frames ran the creases pass (the terrain's ridge and valley lines).
+    let creases = |output: &std::process::Output| -> Vec<bool> {
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&output.stdout).expect("a JSON report");
+        let styles = report["scenes"][0]["styles"].as_array().expect("styles").clone();
+        let names: Vec<&str> = styles.iter().map(|s| s["style"].as_str().unwrap_or_default()).collect();
+        assert_eq!(names, ["full_npr", "half_npr"]);
+        styles.iter().map(|s| s["passes_ms"].get("creases").is_some()).collect()
+    };
+    assert_eq!(creases(&bench(None)), [true, true], "both presets draw the terrain's creases");
+    assert_eq!(creases(&bench(Some(r#"{"terrain_creases": 0}"#))), [false, false], "the field reaches both presets");
+    let output = bench(Some(r#"{"terrain_crease": 0}"#));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success() && stderr.contains("unknown field `terrain_crease`"), "{stderr}");
+}

@@ -189,6 +189,10 @@ struct BenchArgs {
     /// Presets to measure.
     #[arg(long, value_delimiter = ',', default_value = "photorealism,full_npr")]
     styles: Vec<String>,
+    /// Style fields over every preset measured (a JSON object or a file, as `render --style`),
+    /// e.g. `{"terrain_stroke_direction": "image"}` to measure a variant.
+    #[arg(long, value_name = "JSON|FILE")]
+    style: Option<String>,
     /// Frames measured per scene and style.
     #[arg(long, default_value_t = 20)]
     frames: usize,
@@ -839,10 +843,11 @@ async fn shutdown_signal() {
 
 fn bench(args: &BenchArgs) -> Result<()> {
     use landsketch::bench::{BenchOptions, run};
+    let fields: PartialStyle = args.style.as_deref().map(json_object).transpose()?.unwrap_or_default();
     let styles = args
         .styles
         .iter()
-        .map(|name| Ok((name.clone(), landsketch::render::presets::preset(name)?)))
+        .map(|name| Ok((name.clone(), landsketch::render::presets::preset(name)?.with(&fields)?)))
         .collect::<Result<Vec<_>>>()?;
     let options =
         BenchOptions { frames: args.frames, width: args.width, height: args.height, step: args.step, path: args.path };
