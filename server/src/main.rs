@@ -36,7 +36,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render one view of a scene to a PNG file.
+    /// Render one view of a scene to a PNG or JPEG file.
     Render(RenderArgs),
     /// Benchmark scenes of several sizes generated from the scene's rules (README, "Benchmark").
     Bench(BenchArgs),
