@@ -274,6 +274,7 @@ async fn bad_requests_get_json_errors_naming_the_parameter() {
         ("fov=0", 422, "invalid_parameter", Some("fov")),
         ("x=1", 422, "invalid_parameter", Some("y")),
         ("x=99999&y=0", 422, "invalid_parameter", Some("x")),
+        ("x=0&y=0&z=100", 422, "invalid_parameter", Some("z")),
         ("format=webp", 422, "invalid_parameter", Some("format")),
         ("format=jpeg&quality=0", 422, "invalid_parameter", Some("quality")),
         ("style=%7B%22ambient%22%3A2%7D", 422, "invalid_parameter", Some("style.ambient")),
@@ -288,6 +289,10 @@ async fn bad_requests_get_json_errors_naming_the_parameter() {
         let body = assert_error(get(&render(query)).await, status, code, parameter).await;
         if query.starts_with("format=webp") {
             assert!(body["error"]["message"].as_str().is_some_and(|m| m.contains("png, jpeg")), "{body}");
+        }
+        if query.contains("z=100") {
+            let message = body["error"]["message"].as_str().unwrap_or_default();
+            assert!(message.contains("below the terrain") && message.contains("eye_height"), "{body}");
         }
         if query.contains("no_such_field") {
             assert!(body["error"]["message"].as_str().is_some_and(|m| m.contains("no_such_field")), "{body}");
@@ -780,6 +785,28 @@ async fn latest_control_wins_and_a_still_follows_at_rest() {
     assert_eq!((image.width(), image.height()), (160, 120));
 }
 
+/// A flying eye moved down into the ground lands on it, eye height above it, instead of
+/// rendering the paper under the terrain.
+#[tokio::test]
+async fn flying_down_lands_on_the_ground() {
+    let server = TestServer::shared();
+    let (scene, _) = loaded();
+    let ground = scene.terrain.height_at(0.0, 0.0).expect("the terrain under the origin");
+    let mut socket = connect(server, "width=64&height=48").await;
+    next_frame(&mut socket).await;
+    send(&mut socket, json!({"type": "camera", "position": [0.0, 0.0, ground + 500.0], "pitch": -30})).await;
+    send(&mut socket, json!({"type": "move", "up": -2000})).await;
+    let status = loop {
+        let (errors, status, header, _) = next_frame(&mut socket).await;
+        assert!(errors.is_empty(), "{errors:?}");
+        if header.still && header.seq == 2 {
+            break status;
+        }
+    };
+    let z = status["camera"]["position"][2].as_f64().expect("z");
+    assert!((z - (ground + 1.7)).abs() < 0.01, "landed at {z}, ground {ground}");
+}
+
 #[tokio::test]
 async fn garbage_messages_get_errors_and_the_session_goes_on() {
     let server = TestServer::shared();
@@ -1201,15 +1228,28 @@ fn camera_errors_name_the_parameter_as_the_client_wrote_it() {
     let outside = CameraParams { position: Some(vec![1.0e6, 0.0]), ..CameraParams::default() };
     let narrow = CameraParams { mode: Some(CameraMode::Plan), width: Some(0.0), ..CameraParams::default() };
     let turned = CameraParams { yaw: Some(-4000.0), ..CameraParams::default() };
-    for (source, position, width, yaw) in [
-        (Source::Query, "x", "plan_width", "yaw"),
-        (Source::Body, "camera.position", "camera.width", "camera.yaw"),
-        (Source::Message, "position", "width", "yaw"),
-        (Source::CommandLine, "--pos", "--plan WIDTH", "--yaw"),
+    // An elevation under the ground (a height above it given as z, say).
+    let buried = CameraParams { position: Some(vec![0.0, 0.0, 100.0]), ..CameraParams::default() };
+    for (source, position, width, yaw, z) in [
+        (Source::Query, "x", "plan_width", "yaw", "z"),
+        (Source::Body, "camera.position", "camera.width", "camera.yaw", "camera.position"),
+        (Source::Message, "position", "width", "yaw", "position"),
+        (Source::CommandLine, "--pos", "--plan WIDTH", "--yaw", "--pos"),
     ] {
         let error = |params: &CameraParams| params.resolve(camera, scene, source).expect_err("an error").parameter;
-        assert_eq!([error(&outside), error(&narrow), error(&turned)], [position, width, yaw], "{source:?}");
+        assert_eq!(
+            [error(&outside), error(&narrow), error(&turned), error(&buried)],
+            [position, width, yaw, z],
+            "{source:?}"
+        );
     }
+    // Just above the ground, and anywhere outside the terrain, z places the eye freely.
+    let ground = scene.terrain.height_at(0.0, 0.0).expect("the terrain under the origin") as f32;
+    let above = CameraParams { position: Some(vec![0.0, 0.0, ground + 0.5]), ..CameraParams::default() };
+    let resolved = above.resolve(camera, scene, Source::Body).expect("above the ground");
+    assert_eq!(resolved.camera.position, [0.0, 0.0, ground + 0.5]);
+    let off_the_map = CameraParams { position: Some(vec![1.0e5, 0.0, -50.0]), ..CameraParams::default() };
+    assert!(off_the_map.resolve(camera, scene, Source::Body).is_ok());
     let error = turned.resolve(camera, scene, Source::CommandLine).expect_err("an error");
     assert_eq!(error.to_string(), "--yaw -4000 is outside -3600..=3600");
 }

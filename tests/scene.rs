@@ -215,6 +215,9 @@ fn scene_file_errors_name_file_and_problem() {
 
     let camera = load_error(|t| t.replace("position = [205.0, 185.0]", "position = [90000.0, 0.0]"));
     assert!(camera.contains("outside the terrain"), "{camera}");
+    // A z read as a height above the ground puts the eye under it.
+    let buried = load_error(|t| t.replace("position = [205.0, 185.0]", "position = [205.0, 185.0]\nz = 40.0"));
+    assert!(buried.contains("below the terrain") && buried.contains("eye_height"), "{buried}");
 
     let plan = load_error(|t| t.replace("plan_layer = \"planned\"", "plan_layer = \"proposed\""));
     assert!(plan.contains("about.plan_layer") && plan.contains("proposed") && plan.contains("planned"), "{plan}");
@@ -340,6 +343,15 @@ fn a_cli_error_is_a_message_naming_the_file_not_a_debug_dump() {
     assert!(!output.status.success(), "{stderr}");
     assert!(stderr.contains("Error: invalid style (a JSON object of style fields): {\"mass_outline\": 0}"), "{stderr}");
     assert!(stderr.contains("unknown field `mass_outline`") && !stderr.contains("expected an object"), "{stderr}");
+    // An elevation under the ground (the sample's ground at the origin lies 2,340 m up) would draw
+    // blank paper: the flag is named with what it gave.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_landsketch"))
+        .args(["render", "--scene", SAMPLE, "--pos", "0,0,100"])
+        .output()
+        .expect("run landsketch render");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("Error: --pos 0,0,100: the eye is below the terrain"), "{stderr}");
 }
 
 #[test]

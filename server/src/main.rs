@@ -553,33 +553,33 @@ fn camera(args: &RenderArgs, scene: &Scene) -> Result<Camera> {
         };
         return Ok(params.resolve(&scene.default_camera, scene, Source::CommandLine)?.camera);
     }
-    let mut camera = scene.default_camera;
-    if let Some(pos) = &args.pos {
-        let v: Vec<f32> = pos
-            .split(',')
-            .map(|s| s.trim().parse::<f32>())
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("--pos {pos:?}: expected X,Y or X,Y,Z numbers"))?;
-        camera.position = match v[..] {
-            [x, y, z] => [x, y, z],
-            [x, y] => {
-                let ground = scene
-                    .terrain
-                    .height_at(f64::from(x), f64::from(y))
-                    .with_context(|| format!("--pos {x},{y} is outside the terrain; give X,Y,Z"))?;
-                [x, y, ground as f32 + args.eye_height]
+    // A perspective view: the flags as camera parameters, resolved and checked as the server
+    // resolves a request's.
+    let position = match &args.pos {
+        None => None,
+        Some(pos) => {
+            let v: Vec<f32> = pos
+                .split(',')
+                .map(|s| s.trim().parse::<f32>())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--pos {pos:?}: expected X,Y or X,Y,Z numbers"))?;
+            if !(2..=3).contains(&v.len()) {
+                bail!("--pos {pos:?}: expected X,Y or X,Y,Z");
             }
-            _ => bail!("--pos {pos:?}: expected X,Y or X,Y,Z"),
-        };
-    }
-    camera.yaw = args.yaw.unwrap_or(camera.yaw);
-    camera.pitch = args.pitch.unwrap_or(camera.pitch);
-    camera.fov = args.fov.unwrap_or(camera.fov);
-    camera.roll = args.roll.unwrap_or(camera.roll);
-    if !camera.is_valid() {
-        bail!("camera out of range: pitch must be within -90..=90, fov within 1..=170 degrees, all values finite");
-    }
-    Ok(camera)
+            Some(v)
+        }
+    };
+    let on_the_ground = position.as_ref().is_some_and(|v| v.len() == 2);
+    let params = CameraParams {
+        position,
+        eye_height: on_the_ground.then_some(args.eye_height),
+        yaw: args.yaw,
+        pitch: args.pitch,
+        fov: args.fov,
+        roll: args.roll,
+        ..CameraParams::default()
+    };
+    Ok(params.resolve(&scene.default_camera, scene, Source::CommandLine)?.camera)
 }
 
 /// The camera of the scene file's viewpoint `name`; its preset, style and layer styles go

@@ -33,6 +33,7 @@ use crate::render::marks::Pin;
 use crate::render::style::{FrameStyle, LayerStyle, PartialStyle};
 use crate::render::view_style::ViewStyle;
 use crate::scene::camera::Camera;
+use crate::scene::camera_params::DEFAULT_EYE_HEIGHT;
 use crate::store::request::DataRequest;
 use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, Utf8Bytes, WebSocket, WebSocketUpgrade, close_code};
@@ -880,7 +881,13 @@ impl<'a> Session<'a> {
                 })?;
                 (ground as f32 + eye, Some(eye))
             }
-            None => (z + m.up, None),
+            // Flying down onto the ground lands the eye on it, eye height above it: under
+            // the ground a frame would show nothing but paper.
+            None => {
+                let ground = self.ready.scene.terrain.height_at(f64::from(x), f64::from(y));
+                let least = ground.map_or(f32::MIN, |g| g as f32 + DEFAULT_EYE_HEIGHT);
+                ((z + m.up).max(least), None)
+            }
         };
         camera.position = [x, y, z];
         self.view.camera = camera;

@@ -173,6 +173,20 @@ impl CameraParams {
                 match *position {
                     [x, y] => ground_eye(x, y)?,
                     [x, y, z] if self.eye_height.is_none() => {
+                        // An eye under the ground sees nothing but paper: a z read as a height
+                        // above the terrain instead of an elevation is the usual cause.
+                        if let Some(ground) = scene.terrain.buries([x, y, z]) {
+                            let (parameter, given) = match source {
+                                Source::Query => ("z".to_owned(), format!("z {z}")),
+                                _ => (name("position"), format!("{} {x},{y},{z}", name("position"))),
+                            };
+                            return Err(CameraError::new(
+                                parameter,
+                                format!(
+                                    "{given}: the eye is below the terrain (ground {ground:.1} m); z is an elevation: leave it out to stand eye_height above the ground"
+                                ),
+                            ));
+                        }
                         ResolvedCamera { camera: Camera { position: [x, y, z], ..*base }, eye_height: None }
                     }
                     [_, _, _] => {

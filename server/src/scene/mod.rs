@@ -233,6 +233,14 @@ impl Scene {
 
         let cam = config.camera;
         let ground = terrain.height_at(f64::from(cam.position[0]), f64::from(cam.position[1]));
+        if let Some(z) = cam.z
+            && let Some(h) = terrain.buries([cam.position[0], cam.position[1], z])
+        {
+            return Err(SceneError::Invalid(format!(
+                "camera z {z} m is below the terrain at {:?} (ground {h:.1} m): z is an elevation; leave it out to stand `eye_height` above the ground",
+                cam.position
+            )));
+        }
         let z = match (cam.z, ground) {
             (Some(z), _) => z,
             (None, Some(h)) => h as f32 + cam.eye_height,

@@ -101,6 +101,13 @@ impl Terrain {
         self.dem.sample_bilinear(cx, cy)
     }
 
+    /// The ground's height at `(x, y)` when an eye at elevation `z` there would be under it
+    /// (and see nothing): a camera's z given as a height above the ground instead of an
+    /// elevation. `None` where the eye is above the ground or off the terrain.
+    pub fn buries(&self, [x, y, z]: [f32; 3]) -> Option<f64> {
+        self.height_at(f64::from(x), f64::from(y)).filter(|&ground| f64::from(z) < ground)
+    }
+
     /// The scene-space rectangle `(min, max)` covered by the DEM's cell centres.
     pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
         let (lo, hi) = self.mesh.bounds().unwrap_or(([0.0; 3], [0.0; 3]));
