@@ -93,7 +93,8 @@ pub struct RenderQuery {
     /// Camera y, scene metres (north).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub y: Option<f32>,
-    /// Absolute eye height; without it the eye is `eye_height` above the terrain.
+    /// Eye elevation in scene metres (not below the terrain there); without it the eye is
+    /// `eye_height` above the terrain.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub z: Option<f32>,
     /// Eye height above the terrain when z is left out (default 1.7).

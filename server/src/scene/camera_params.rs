@@ -88,7 +88,8 @@ pub struct CameraParams {
     /// terrain's larger side).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub width: Option<f32>,
-    /// `[x, y]` (the eye `eye_height` above the terrain) or `[x, y, z]`, scene metres.
+    /// `[x, y]` (the eye `eye_height` above the terrain) or `[x, y, z]` (z an elevation, not
+    /// below the terrain there), scene metres.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<Vec<f32>>, min_items = 2, max_items = 3)]
     pub position: Option<Vec<f32>>,

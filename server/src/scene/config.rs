@@ -137,7 +137,8 @@ impl Default for SunConfig {
 pub struct CameraConfig {
     /// Scene-space position (x east, y north) in metres from the scene origin.
     pub position: [f32; 2],
-    /// Absolute eye height in metres; when absent the eye is `eye_height` above the terrain.
+    /// Eye elevation in metres (not below the terrain there); when absent the eye is
+    /// `eye_height` above the terrain.
     pub z: Option<f32>,
     #[serde(default = "default_eye_height")]
     pub eye_height: f32,
