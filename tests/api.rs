@@ -785,7 +785,7 @@ async fn latest_control_wins_and_a_still_follows_at_rest() {
     assert_eq!((image.width(), image.height()), (160, 120));
 }
 
-/// A flying eye moved down into the ground lands on it, eye height above it, instead of
+/// A flying eye moved or placed under the ground lands on it, eye height above it, instead of
 /// rendering the paper under the terrain.
 #[tokio::test]
 async fn flying_down_lands_on_the_ground() {
@@ -800,6 +800,17 @@ async fn flying_down_lands_on_the_ground() {
         let (errors, status, header, _) = next_frame(&mut socket).await;
         assert!(errors.is_empty(), "{errors:?}");
         if header.still && header.seq == 2 {
+            break status;
+        }
+    };
+    let z = status["camera"]["position"][2].as_f64().expect("z");
+    assert!((z - (ground + 1.7)).abs() < 0.01, "landed at {z}, ground {ground}");
+    // A flying position under the ground (a client's own flight into a hill) lands there too.
+    send(&mut socket, json!({"type": "camera", "position": [0.0, 0.0, ground - 300.0]})).await;
+    let status = loop {
+        let (errors, status, header, _) = next_frame(&mut socket).await;
+        assert!(errors.is_empty(), "{errors:?}");
+        if header.still && header.seq == 3 {
             break status;
         }
     };

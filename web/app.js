@@ -150,6 +150,7 @@ function drawFrame({ meta, header, bitmap }) {
     app.frameCamera = meta.camera;
     canvas.dataset.camera = JSON.stringify(meta.camera);
     if (app.meeting?.role === 'follower' || app.touring) adoptCamera(meta.camera);
+    else landIfGrounded(meta.camera, header.seq);
   }
   $('placeholder').hidden = true;
 }
@@ -210,6 +211,18 @@ function serverError(message) {
     [app.view.x, app.view.y] = app.frameCamera.position;
     scheduleLink();
   }
+}
+
+/**
+ * Flying into the ground lands the eye on it (the server raises it to eye height above the
+ * ground): the view flies on from there, so climbing starts at once. Only the frame of the
+ * latest control tells where the eye is now.
+ */
+function landIfGrounded(camera, seq) {
+  const view = app.view;
+  if (view.z == null || view.plan || seq !== app.connection.sent || !(camera.position[2] > view.z + 0.01)) return;
+  view.z = camera.position[2];
+  scheduleLink();
 }
 
 /** Shows the camera mode on the Fly and Plan buttons. */

@@ -563,6 +563,23 @@ try {
     });
     assert.ok(after.position[2] > camera.position[2] + 0.5, `climbed: z ${camera.position[2]} → ${after.position[2]}`);
     await linked(page, 'z', (v) => v !== null);
+    // Diving into the ground (faster: 20 wheel notches up) lands the eye eye height above it,
+    // where the walker stood, and climbing starts from there.
+    await page.locator('#viewer').hover();
+    for (let i = 0; i < 20; i += 1) await page.mouse.wheel(0, -100);
+    const ground = await stillAfter(page, async () => {
+      await page.keyboard.down('KeyQ');
+      await page.waitForTimeout(1500);
+      await page.keyboard.up('KeyQ');
+    });
+    assert.ok(Math.abs(ground.position[2] - camera.position[2]) < 0.01, `landed at z ${ground.position[2]}, walker ${camera.position[2]}`);
+    const up = await stillAfter(page, async () => {
+      await page.keyboard.down('KeyE');
+      await page.waitForTimeout(300);
+      await page.keyboard.up('KeyE');
+    });
+    assert.ok(up.position[2] > ground.position[2] + 5, `climbs from the ground: z ${ground.position[2]} → ${up.position[2]}`);
+    for (let i = 0; i < 20; i += 1) await page.mouse.wheel(0, 100);
     const landed = await stillAfter(page, () => page.locator('#fly').click());
     assert.ok(Math.abs(landed.position[2] - camera.position[2]) < 0.01, 'walking again at the eye height');
     camera = landed;

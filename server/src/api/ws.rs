@@ -847,12 +847,24 @@ impl<'a> Session<'a> {
     }
 
     fn set_camera(&mut self, params: &CameraParams) -> Result<(), ApiError> {
+        let mut params = params.clone();
+        if let Some([x, y, z]) = params.position.as_deref().and_then(|p| <[f32; 3]>::try_from(p).ok()) {
+            params.position = Some(vec![x, y, self.flying_z([x, y, z])]);
+        }
         let resolved = params.resolve(&self.view.camera, &self.ready.scene, Source::Message)?;
         if params.position.is_some() || params.eye_height.is_some() {
             self.view.eye_height = resolved.eye_height;
         }
         self.view.camera = resolved.camera;
         Ok(())
+    }
+
+    /// The elevation of a flying eye asked for at `[x, y, z]`: flying down onto the ground (or
+    /// into a hill) lands the eye eye height above it, as a walker's; under the ground a frame
+    /// would show nothing but paper.
+    fn flying_z(&self, [x, y, z]: [f32; 3]) -> f32 {
+        let terrain = &self.ready.scene.terrain;
+        terrain.buries([x, y, z - DEFAULT_EYE_HEIGHT]).map_or(z, |ground| ground as f32 + DEFAULT_EYE_HEIGHT)
     }
 
     fn move_camera(&mut self, m: &Move) -> Result<(), ApiError> {
@@ -881,13 +893,7 @@ impl<'a> Session<'a> {
                 })?;
                 (ground as f32 + eye, Some(eye))
             }
-            // Flying down onto the ground lands the eye on it, eye height above it: under
-            // the ground a frame would show nothing but paper.
-            None => {
-                let ground = self.ready.scene.terrain.height_at(f64::from(x), f64::from(y));
-                let least = ground.map_or(f32::MIN, |g| g as f32 + DEFAULT_EYE_HEIGHT);
-                ((z + m.up).max(least), None)
-            }
+            None => (self.flying_z([x, y, z + m.up]), None),
         };
         camera.position = [x, y, z];
         self.view.camera = camera;
