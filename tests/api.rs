@@ -5,7 +5,7 @@ mod common;
 
 use clap::Parser;
 use common::server::{TestServer, client, get, json_of, loaded, raw_exchange};
-use common::ws::{Incoming, connect, next_frame, receive, send};
+use common::ws::{Incoming, Socket, connect, next_frame, receive, send};
 use futures_util::{SinkExt, StreamExt};
 use landsketch::api::view::{ImageFormat, Limits, Source, ViewParams};
 use landsketch::api::{Server, ServerConfig};
@@ -795,26 +795,22 @@ async fn flying_down_lands_on_the_ground() {
     let mut socket = connect(server, "width=64&height=48").await;
     next_frame(&mut socket).await;
     send(&mut socket, json!({"type": "camera", "position": [0.0, 0.0, ground + 500.0], "pitch": -30})).await;
-    send(&mut socket, json!({"type": "move", "up": -2000})).await;
-    let status = loop {
-        let (errors, status, header, _) = next_frame(&mut socket).await;
-        assert!(errors.is_empty(), "{errors:?}");
-        if header.still && header.seq == 2 {
-            break status;
+    // The eye's z in the still of control `seq`.
+    async fn still_z(socket: &mut Socket, seq: u32) -> f64 {
+        loop {
+            let (errors, status, header, _) = next_frame(socket).await;
+            assert!(errors.is_empty(), "{errors:?}");
+            if header.still && header.seq == seq {
+                return status["camera"]["position"][2].as_f64().expect("z");
+            }
         }
-    };
-    let z = status["camera"]["position"][2].as_f64().expect("z");
+    }
+    send(&mut socket, json!({"type": "move", "up": -2000})).await;
+    let z = still_z(&mut socket, 2).await;
     assert!((z - (ground + 1.7)).abs() < 0.01, "landed at {z}, ground {ground}");
     // A flying position under the ground (a client's own flight into a hill) lands there too.
     send(&mut socket, json!({"type": "camera", "position": [0.0, 0.0, ground - 300.0]})).await;
-    let status = loop {
-        let (errors, status, header, _) = next_frame(&mut socket).await;
-        assert!(errors.is_empty(), "{errors:?}");
-        if header.still && header.seq == 3 {
-            break status;
-        }
-    };
-    let z = status["camera"]["position"][2].as_f64().expect("z");
+    let z = still_z(&mut socket, 3).await;
     assert!((z - (ground + 1.7)).abs() < 0.01, "landed at {z}, ground {ground}");
 }
 
